@@ -1,0 +1,204 @@
+//! The `moreau` command line.
+
+use crate::io::report::{summary_line, SolveOutput};
+use crate::io::siconos::{read_fc2d, write_fc2d, Storage};
+use crate::problem::generate;
+use crate::solvers::{solve, Ordering, SolverKind, SolverOptions, StopCriterion};
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand, ValueEnum};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(name = "moreau", version, about = "2D granular contact dynamics (NSCD) on CPU and GPU")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum DeviceChoice {
+    /// The GPU if one is found, else the CPU (says which).
+    Auto,
+    Cpu,
+    Gpu,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum StorageChoice {
+    Auto,
+    Dense,
+    Sparse,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum GeneratedProblem {
+    /// A column of light disks under one heavy disk (mass ratio).
+    HeavyColumn,
+    /// A square lattice of disks in a box (redundant contacts, random masses and velocities).
+    Lattice,
+    /// A few random contacts among a few disks.
+    Random,
+}
+
+#[derive(clap::Args)]
+struct SolveArgs {
+    /// Problem file (Siconos fc2d format).
+    file: PathBuf,
+    #[arg(long, value_enum, default_value_t = SolverKind::Nlgs)]
+    solver: SolverKind,
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    device: DeviceChoice,
+    /// Tolerance on the natural-map error (or LMGC90's criterion when --criterion says so).
+    #[arg(long, default_value_t = 1e-8)]
+    tol: f64,
+    #[arg(long, default_value_t = 10_000)]
+    max_iter: usize,
+    #[arg(long, value_enum, default_value_t = StopCriterion::Natural)]
+    criterion: StopCriterion,
+    /// NLGS relaxation ω.
+    #[arg(long, default_value_t = 1.0)]
+    omega: f64,
+    /// NLGS contact ordering.
+    #[arg(long, value_enum, default_value_t = Ordering::Forward)]
+    ordering: Ordering,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Projected Jacobi relaxation.
+    #[arg(long, default_value_t = SolverOptions::default().jacobi_omega)]
+    jacobi_omega: f64,
+    /// LATIN search direction, as a multiple of diag(W).
+    #[arg(long, default_value_t = SolverOptions::default().latin_k)]
+    latin_k: f64,
+    /// APGD iterations between Tresca threshold updates.
+    #[arg(long, default_value_t = SolverOptions::default().apgd_threshold_every)]
+    apgd_threshold_every: usize,
+    /// Record the error every N iterations (0: only at checks).
+    #[arg(long, default_value_t = 0)]
+    history_every: usize,
+    /// Write the result as JSON here.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Solve one frictional contact problem read from a file.
+    Solve(SolveArgs),
+    /// Write a built-in problem as a Siconos fc2d file.
+    Generate {
+        #[arg(value_enum)]
+        kind: GeneratedProblem,
+        #[arg(long)]
+        out: PathBuf,
+        /// Number of light disks (heavy-column) or contacts (random).
+        #[arg(long, default_value_t = 10)]
+        n: usize,
+        #[arg(long, default_value_t = 1000.0)]
+        mass_ratio: f64,
+        #[arg(long, default_value_t = 20)]
+        nx: usize,
+        #[arg(long, default_value_t = 20)]
+        ny: usize,
+        #[arg(long, default_value_t = 0.5)]
+        mu: f64,
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        #[arg(long, value_enum, default_value_t = StorageChoice::Auto)]
+        storage: StorageChoice,
+    },
+}
+
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Solve(args) => solve_command(args),
+        Command::Generate { kind, out, n, mass_ratio, nx, ny, mu, seed, storage } => {
+            if !(mu.is_finite() && mu >= 0.0) {
+                bail!("--mu {mu}: the friction coefficient must be finite and >= 0");
+            }
+            if !(mass_ratio.is_finite() && mass_ratio > 0.0) {
+                bail!("--mass-ratio {mass_ratio}: must be finite and > 0");
+            }
+            let problem = match kind {
+                GeneratedProblem::HeavyColumn => generate::heavy_column(n.max(1), mass_ratio, mu),
+                GeneratedProblem::Lattice => generate::lattice_packing(nx.max(1), ny.max(1), mu, seed),
+                GeneratedProblem::Random => generate::random_small(n.max(1), mu, seed),
+            };
+            let storage = match storage {
+                StorageChoice::Dense => Storage::Dense,
+                StorageChoice::Sparse => Storage::Sparse,
+                StorageChoice::Auto if problem.n_contacts() <= 16 => Storage::Dense,
+                StorageChoice::Auto => Storage::Sparse,
+            };
+            write_fc2d(&problem, storage, &out)?;
+            println!("wrote {} ({} contacts)", out.display(), problem.n_contacts());
+            Ok(())
+        }
+    }
+}
+
+/// Picks the device; only the CPU path exists in this build, so `gpu` is an error and `auto` says so.
+fn resolve_device(choice: DeviceChoice) -> Result<&'static str> {
+    match choice {
+        DeviceChoice::Cpu => Ok("cpu"),
+        DeviceChoice::Auto => {
+            eprintln!("device: cpu (this build of moreau has no GPU path yet)");
+            Ok("cpu")
+        }
+        DeviceChoice::Gpu => bail!("--device gpu: this build of moreau has no GPU path yet; use --device cpu"),
+    }
+}
+
+fn solve_command(a: SolveArgs) -> Result<()> {
+    if !(a.tol.is_finite() && a.tol > 0.0) {
+        bail!("--tol {}: must be finite and > 0", a.tol);
+    }
+    if !(a.omega > 0.0 && a.omega < 2.0) {
+        bail!("--omega {}: the NLGS relaxation must lie in (0, 2)", a.omega);
+    }
+    if !(a.jacobi_omega > 0.0 && a.jacobi_omega.is_finite()) {
+        bail!("--jacobi-omega {}: must be finite and > 0", a.jacobi_omega);
+    }
+    if !(a.latin_k > 0.0 && a.latin_k.is_finite()) {
+        bail!("--latin-k {}: must be finite and > 0", a.latin_k);
+    }
+    if a.max_iter == 0 {
+        bail!("--max-iter must be at least 1");
+    }
+    let device = resolve_device(a.device)?;
+    let problem = read_fc2d(&a.file)?;
+    let opts = SolverOptions {
+        tol: a.tol,
+        max_iter: a.max_iter,
+        criterion: a.criterion,
+        omega: a.omega,
+        ordering: a.ordering,
+        seed: a.seed,
+        jacobi_omega: a.jacobi_omega,
+        latin_k: a.latin_k,
+        apgd_threshold_every: a.apgd_threshold_every,
+        history_every: a.history_every,
+    };
+    let report = solve(&problem, a.solver, &opts, None);
+    println!("{}", summary_line(&report, device, a.tol));
+    if !report.converged {
+        eprintln!("warning: {} did not converge: {}", report.solver, report.stop_reason);
+    }
+    if let Some(out) = &a.out {
+        let name = a.file.display().to_string();
+        let json = serde_json::to_string(&SolveOutput::new(&name, device, &opts, &report))?;
+        std::fs::write(out, json).with_context(|| format!("writing {}", out.display()))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,15 @@
+//! moreau — 2D granular contact dynamics (nonsmooth contact dynamics, Moreau–Jean).
+//!
+//! * [`problem`]: the one-step frictional contact problem `u = W r + q` and its operator `W`
+//!   (matrix-free `B M⁻¹ Bᵀ` or explicit block-sparse), the Coulomb cone, the error measure.
+//! * [`solvers`]: the CPU reference solvers in f64 (NLGS, CPG, PCPG, LATIN, projected Jacobi, APGD).
+//! * [`io`]: Siconos fc2d problem files, JSON reports.
+//! * [`cli`]: the `moreau` command line.
+
+pub mod cli;
+pub mod io;
+pub mod problem;
+pub mod solvers;
+
+pub use problem::ContactProblem;
+pub use solvers::{solve, SolveReport, SolverKind, SolverOptions};

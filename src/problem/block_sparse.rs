@@ -1,0 +1,117 @@
+//! Explicit `W` as a sparse matrix of 2×2 blocks, rows by contact (block CSR).
+//! Used for problems read from files; row access makes Gauss–Seidel sweeps cheap.
+
+use super::Mat2;
+
+#[derive(Clone, Debug)]
+pub struct BlockSparse {
+    row_ptr: Vec<usize>,
+    cols: Vec<usize>,
+    blocks: Vec<Mat2>,
+    diag_pos: Vec<usize>, // index into blocks of (a, a), usize::MAX if absent
+}
+
+impl BlockSparse {
+    /// Builds from (row, col, block) triplets; duplicates are summed.
+    pub fn from_block_triplets(n: usize, mut t: Vec<(usize, usize, Mat2)>) -> Self {
+        t.sort_unstable_by_key(|&(r, c, _)| (r, c));
+        let mut row_ptr = vec![0usize; n + 1];
+        let mut cols = Vec::with_capacity(t.len());
+        let mut blocks: Vec<Mat2> = Vec::with_capacity(t.len());
+        let mut last: Option<(usize, usize)> = None;
+        for (r, c, b) in t {
+            if last == Some((r, c)) {
+                let acc = blocks.last_mut().unwrap();
+                for k in 0..4 {
+                    acc[k] += b[k];
+                }
+            } else {
+                cols.push(c);
+                blocks.push(b);
+                row_ptr[r + 1] += 1;
+                last = Some((r, c));
+            }
+        }
+        for a in 0..n {
+            row_ptr[a + 1] += row_ptr[a];
+        }
+        let diag_pos = (0..n)
+            .map(|a| (row_ptr[a]..row_ptr[a + 1]).find(|&k| cols[k] == a).unwrap_or(usize::MAX))
+            .collect();
+        Self { row_ptr, cols, blocks, diag_pos }
+    }
+
+    /// Builds from scalar (row, col, value) entries of a `2n × 2n` matrix.
+    pub fn from_scalar_entries(n: usize, entries: impl IntoIterator<Item = (usize, usize, f64)>) -> Self {
+        let t = entries
+            .into_iter()
+            .map(|(i, j, v)| {
+                let mut b = [0.0; 4];
+                b[2 * (i % 2) + (j % 2)] = v;
+                (i / 2, j / 2, b)
+            })
+            .collect();
+        Self::from_block_triplets(n, t)
+    }
+
+    pub fn n_contacts(&self) -> usize {
+        self.row_ptr.len() - 1
+    }
+
+    pub fn n_blocks(&self) -> usize {
+        self.blocks.len()
+    }
+
+    /// `(W r)_a`.
+    #[inline]
+    pub fn row_product(&self, a: usize, r: &[f64]) -> [f64; 2] {
+        let mut s = [0.0; 2];
+        for k in self.row_ptr[a]..self.row_ptr[a + 1] {
+            let (b, c) = (&self.blocks[k], self.cols[k]);
+            let (rn, rt) = (r[2 * c], r[2 * c + 1]);
+            s[0] += b[0] * rn + b[1] * rt;
+            s[1] += b[2] * rn + b[3] * rt;
+        }
+        s
+    }
+
+    pub fn apply(&self, r: &[f64], out: &mut [f64]) {
+        for a in 0..self.n_contacts() {
+            let s = self.row_product(a, r);
+            out[2 * a] = s[0];
+            out[2 * a + 1] = s[1];
+        }
+    }
+
+    pub fn diag_block(&self, a: usize) -> Mat2 {
+        match self.diag_pos[a] {
+            usize::MAX => [0.0; 4],
+            k => self.blocks[k],
+        }
+    }
+
+    /// Scalar entries `(row, col, value)` in column-major order (for CSparse-style output).
+    pub fn scalar_entries_by_column(&self) -> Vec<(usize, usize, f64)> {
+        let mut e = Vec::with_capacity(4 * self.blocks.len());
+        for a in 0..self.n_contacts() {
+            for k in self.row_ptr[a]..self.row_ptr[a + 1] {
+                let (b, c) = (&self.blocks[k], self.cols[k]);
+                for (idx, &v) in b.iter().enumerate() {
+                    if v != 0.0 {
+                        e.push((2 * a + idx / 2, 2 * c + idx % 2, v));
+                    }
+                }
+            }
+        }
+        e.sort_unstable_by_key(|&(i, j, _)| (j, i));
+        e
+    }
+
+    pub fn validate(&self) -> Result<(), String> {
+        if let Some(k) = self.blocks.iter().position(|b| b.iter().any(|x| !x.is_finite())) {
+            let a = self.row_ptr.partition_point(|&p| p <= k) - 1;
+            return Err(format!("entry in block ({a}, {}) is not finite", self.cols[k]));
+        }
+        Ok(())
+    }
+}

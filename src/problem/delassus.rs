@@ -1,0 +1,96 @@
+//! The one operator interface every solver uses: products with `W`, its diagonal 2×2 blocks,
+//! and the incremental row access a Gauss–Seidel sweep needs.
+
+use super::{BlockSparse, Mat2, MatrixFree};
+
+#[derive(Clone, Debug)]
+pub enum Delassus {
+    /// `W = B M⁻¹ Bᵀ`, never assembled.
+    MatrixFree(MatrixFree),
+    /// Explicit block-sparse `W` (problems read from files).
+    Sparse(BlockSparse),
+}
+
+/// What a sweep keeps between contact updates: body velocities `M⁻¹ Bᵀ r` for the
+/// matrix-free form, nothing for the explicit form (rows read `r` directly).
+pub struct SweepState {
+    body_velocity: Vec<f64>,
+}
+
+impl Delassus {
+    pub fn n_contacts(&self) -> usize {
+        match self {
+            Delassus::MatrixFree(m) => m.n_contacts(),
+            Delassus::Sparse(s) => s.n_contacts(),
+        }
+    }
+
+    /// `out = W r`.
+    pub fn apply(&self, r: &[f64], out: &mut [f64]) {
+        match self {
+            Delassus::MatrixFree(m) => m.apply(r, out),
+            Delassus::Sparse(s) => s.apply(r, out),
+        }
+    }
+
+    pub fn diag_block(&self, a: usize) -> Mat2 {
+        match self {
+            Delassus::MatrixFree(m) => m.diag_block(a),
+            Delassus::Sparse(s) => s.diag_block(a),
+        }
+    }
+
+    pub fn diag_blocks(&self) -> Vec<Mat2> {
+        (0..self.n_contacts()).map(|a| self.diag_block(a)).collect()
+    }
+
+    pub fn sweep_state(&self, r: &[f64]) -> SweepState {
+        SweepState {
+            body_velocity: match self {
+                Delassus::MatrixFree(m) => m.body_velocities(r),
+                Delassus::Sparse(_) => Vec::new(),
+            },
+        }
+    }
+
+    /// `(W r)_a`, consistent with the state as long as every change of `r` went through [`Self::record_change`].
+    #[inline]
+    pub fn row(&self, a: usize, r: &[f64], state: &SweepState) -> [f64; 2] {
+        match self {
+            Delassus::MatrixFree(m) => m.gather_one(a, &state.body_velocity),
+            Delassus::Sparse(s) => s.row_product(a, r),
+        }
+    }
+
+    #[inline]
+    pub fn record_change(&self, a: usize, dr: [f64; 2], state: &mut SweepState) {
+        if let Delassus::MatrixFree(m) = self {
+            m.scatter_one(a, dr[0], dr[1], &mut state.body_velocity);
+        }
+    }
+
+    /// Explicit form (assembles the matrix-free one).
+    pub fn to_block_sparse(&self) -> BlockSparse {
+        match self {
+            Delassus::MatrixFree(m) => m.assemble(),
+            Delassus::Sparse(s) => s.clone(),
+        }
+    }
+
+    /// Every contact needs a positive normal compliance, or no impulse can act on it.
+    pub fn validate(&self) -> Result<(), String> {
+        if let Delassus::Sparse(s) = self {
+            s.validate()?;
+        }
+        for a in 0..self.n_contacts() {
+            let d = self.diag_block(a);
+            if !(d[0] > 0.0 && d[3] >= 0.0 && d.iter().all(|x| x.is_finite())) {
+                return Err(format!(
+                    "diagonal block of contact {a} is [[{}, {}], [{}, {}]]: W_nn must be > 0 (a contact between two fixed bodies?)",
+                    d[0], d[1], d[2], d[3]
+                ));
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,91 @@
+//! The one-step 2D frictional contact problem `u = W r + q` with a Coulomb cone per contact.
+//!
+//! Vectors are interleaved per contact, normal first: `r = [r_n0, r_t0, r_n1, r_t1, …]`.
+//! `W` is a [`Delassus`] operator: matrix-free (`B M⁻¹ Bᵀ` through bodies and contacts) or an
+//! explicit 2×2-block sparse matrix read from a file. Solvers only see the operator interface.
+
+pub mod block_sparse;
+pub mod cone;
+pub mod delassus;
+pub mod generate;
+pub mod matrix_free;
+pub mod residual;
+
+pub use block_sparse::BlockSparse;
+pub use delassus::Delassus;
+pub use matrix_free::{Body, Contact, MatrixFree};
+
+use thiserror::Error;
+
+/// A 2×2 block stored row-major in the (n, t) frame: `[nn, nt, tn, tt]`.
+pub type Mat2 = [f64; 4];
+
+#[derive(Debug, Error, PartialEq)]
+pub enum ProblemError {
+    #[error("q has {got} entries, expected {expected} (2 per contact)")]
+    QSize { got: usize, expected: usize },
+    #[error("mu has {got} entries, expected {expected} (1 per contact)")]
+    MuSize { got: usize, expected: usize },
+    #[error("q[{0}] is not finite")]
+    QNotFinite(usize),
+    #[error("mu[{0}] = {1} is not a friction coefficient (must be finite and >= 0)")]
+    BadMu(usize, f64),
+    #[error("W: {0}")]
+    Operator(String),
+}
+
+/// One time step's frictional contact problem.
+#[derive(Clone, Debug)]
+pub struct ContactProblem {
+    pub w: Delassus,
+    pub q: Vec<f64>,
+    pub mu: Vec<f64>,
+}
+
+impl ContactProblem {
+    /// Builds a problem after checking sizes and values; never accepts NaN or negative μ.
+    pub fn new(w: Delassus, q: Vec<f64>, mu: Vec<f64>) -> Result<Self, ProblemError> {
+        let nc = w.n_contacts();
+        if q.len() != 2 * nc {
+            return Err(ProblemError::QSize { got: q.len(), expected: 2 * nc });
+        }
+        if mu.len() != nc {
+            return Err(ProblemError::MuSize { got: mu.len(), expected: nc });
+        }
+        if let Some(i) = q.iter().position(|x| !x.is_finite()) {
+            return Err(ProblemError::QNotFinite(i));
+        }
+        if let Some(i) = mu.iter().position(|m| !m.is_finite() || *m < 0.0) {
+            return Err(ProblemError::BadMu(i, mu[i]));
+        }
+        w.validate().map_err(ProblemError::Operator)?;
+        Ok(Self { w, q, mu })
+    }
+
+    pub fn n_contacts(&self) -> usize {
+        self.mu.len()
+    }
+
+    /// `u = W r + q` (one operator product).
+    pub fn velocity(&self, r: &[f64]) -> Vec<f64> {
+        let mut u = vec![0.0; r.len()];
+        self.w.apply(r, &mut u);
+        for (ui, qi) in u.iter_mut().zip(&self.q) {
+            *ui += qi;
+        }
+        u
+    }
+
+    /// Whether every contact is frictionless, so solvers may drop the tangential rows.
+    pub fn is_frictionless(&self) -> bool {
+        self.mu.iter().all(|&m| m == 0.0)
+    }
+}
+
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+pub(crate) fn norm(a: &[f64]) -> f64 {
+    dot(a, a).sqrt()
+}

@@ -1,0 +1,131 @@
+//! LATIN (Ladevèze; Alart–Dureisseix–Renouf 2006), the augmented-Lagrangian / Douglas–Rachford
+//! form with a diagonal search direction `k` (notes §5). Unknowns: impulses `z` and velocities
+//! `w`. Each iteration alternates
+//! * a linear stage on `w = W z + q` along `(w − ŵ) + k (z − ẑ) = 0`: `(W + k) z = ŵ + k ẑ − q`,
+//!   solved by preconditioned CG on the matrix-free operator (warm-started, inexact at first);
+//! * a local stage on the contact law along `(ŵ − w) − k (ẑ − z) = 0`, exact per contact because
+//!   the diagonal `k` decouples Signorini from the tangential law: with `σ = z − w/k`,
+//!   `ẑ_n = max(σ_n, 0)`, `ẑ_t = clamp(σ_t, ±μ ẑ_n)`, `ŵ = k (ẑ − σ)`.
+//!
+//! `k = latin_k · diag(W)` per component (compliance units). The returned impulse is `ẑ`, which
+//! always lies in the cone.
+
+use super::monitor::Monitor;
+use super::{SolveReport, SolverKind, SolverOptions};
+use crate::problem::{dot, norm, ContactProblem};
+
+pub fn solve(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>) -> SolveReport {
+    let nc = p.n_contacts();
+    let n = 2 * nc;
+    let k: Vec<f64> = p
+        .w
+        .diag_blocks()
+        .iter()
+        .flat_map(|d| [opts.latin_k * d[0], opts.latin_k * if d[3] > 0.0 { d[3] } else { d[0] }])
+        .collect();
+    let mut monitor = Monitor::new(p, opts, SolverKind::Latin, &r0);
+    let mut z = r0;
+    let mut w = p.velocity(&z);
+    monitor.w_products += 1;
+    let (mut z_hat, mut w_hat) = (vec![0.0; n], vec![0.0; n]);
+    local_stage(&p.mu, &k, &z, &w, &mut z_hat, &mut w_hat);
+    let mut rhs = vec![0.0; n];
+    let mut cg = Cg::new(n);
+    let mut inner_tol: f64 = 1e-2;
+    loop {
+        for i in 0..n {
+            rhs[i] = w_hat[i] + k[i] * z_hat[i] - p.q[i];
+        }
+        monitor.w_products += cg.solve(p, &k, &rhs, &mut z, inner_tol);
+        for i in 0..n {
+            w[i] = w_hat[i] + k[i] * (z_hat[i] - z[i]);
+        }
+        let previous = z_hat.clone();
+        local_stage(&p.mu, &k, &z, &w, &mut z_hat, &mut w_hat);
+        let change = {
+            let d: f64 = z_hat.iter().zip(&previous).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
+            d / norm(&z_hat).max(f64::MIN_POSITIVE)
+        };
+        // The linear stage needs to be only as accurate as the outer iteration is.
+        inner_tol = (0.1 * change).clamp(1e-15, 1e-2);
+        if monitor.observe(&z_hat, None) {
+            break;
+        }
+    }
+    monitor.finish(z_hat)
+}
+
+/// Exact projection of `(z, w)` onto the contact law along the search direction `k`.
+fn local_stage(mu: &[f64], k: &[f64], z: &[f64], w: &[f64], z_hat: &mut [f64], w_hat: &mut [f64]) {
+    for (a, &m) in mu.iter().enumerate() {
+        let (i, j) = (2 * a, 2 * a + 1);
+        let sn = z[i] - w[i] / k[i];
+        let st = z[j] - w[j] / k[j];
+        let zn = sn.max(0.0);
+        let s = m * zn;
+        let zt = st.clamp(-s, s);
+        z_hat[i] = zn;
+        z_hat[j] = zt;
+        w_hat[i] = k[i] * (zn - sn);
+        w_hat[j] = k[j] * (zt - st);
+    }
+}
+
+/// Jacobi-preconditioned conjugate gradient on `(W + diag(k)) x = b`.
+struct Cg {
+    res: Vec<f64>,
+    dir: Vec<f64>,
+    prec_res: Vec<f64>,
+    a_dir: Vec<f64>,
+}
+
+impl Cg {
+    fn new(n: usize) -> Self {
+        Self { res: vec![0.0; n], dir: vec![0.0; n], prec_res: vec![0.0; n], a_dir: vec![0.0; n] }
+    }
+
+    /// Returns the number of products with `W`.
+    fn solve(&mut self, p: &ContactProblem, k: &[f64], b: &[f64], x: &mut [f64], rel_tol: f64) -> usize {
+        let n = b.len();
+        let diag: Vec<f64> = p.w.diag_blocks().iter().flat_map(|d| [d[0], d[3]]).zip(k).map(|(d, k)| d + k).collect();
+        let apply = |v: &[f64], out: &mut [f64]| {
+            p.w.apply(v, out);
+            for i in 0..n {
+                out[i] += k[i] * v[i];
+            }
+        };
+        apply(x, &mut self.a_dir);
+        let mut products = 1;
+        for i in 0..n {
+            self.res[i] = b[i] - self.a_dir[i];
+            self.prec_res[i] = self.res[i] / diag[i];
+        }
+        self.dir.copy_from_slice(&self.prec_res);
+        let target = rel_tol * norm(b).max(f64::MIN_POSITIVE);
+        let mut rz = dot(&self.res, &self.prec_res);
+        for _ in 0..10 * n.max(10) {
+            if norm(&self.res) <= target {
+                break;
+            }
+            apply(&self.dir, &mut self.a_dir);
+            products += 1;
+            let pap = dot(&self.dir, &self.a_dir);
+            if pap <= 0.0 {
+                break;
+            }
+            let alpha = rz / pap;
+            for i in 0..n {
+                x[i] += alpha * self.dir[i];
+                self.res[i] -= alpha * self.a_dir[i];
+                self.prec_res[i] = self.res[i] / diag[i];
+            }
+            let rz_new = dot(&self.res, &self.prec_res);
+            let beta = rz_new / rz;
+            rz = rz_new;
+            for i in 0..n {
+                self.dir[i] = self.prec_res[i] + beta * self.dir[i];
+            }
+        }
+        products
+    }
+}

@@ -1,0 +1,162 @@
+//! CPU reference solvers (f64) of the one-step frictional contact problem.
+//!
+//! | solver | file | idea |
+//! |---|---|---|
+//! | NLGS | [`nlgs`] | Gauss–Seidel sweeps of the exact single-contact solve |
+//! | CPG / PCPG | [`cpg`] | Renouf–Alart conjugate projected gradient, plain / diagonal preconditioner |
+//! | LATIN | [`latin`] | local/linear stages with search direction k (augmented Lagrangian) |
+//! | projected Jacobi | [`jacobi`] | all contacts from the same iterate, relaxation and per-contact scaling |
+//! | APGD | [`apgd`] | Nesterov projected gradient with restart, Tresca box with threshold updates |
+//!
+//! Every solver is judged by the same f64 error ([`crate::problem::residual`]) through a
+//! [`monitor::Monitor`], and returns a [`SolveReport`].
+
+pub mod apgd;
+pub mod cpg;
+pub mod jacobi;
+pub mod latin;
+pub mod lmgc_criteria;
+pub mod monitor;
+pub mod nlgs;
+
+use crate::problem::ContactProblem;
+use serde::Serialize;
+use std::fmt;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum SolverKind {
+    Nlgs,
+    Cpg,
+    Pcpg,
+    Latin,
+    Jacobi,
+    Apgd,
+}
+
+impl SolverKind {
+    pub const ALL: [SolverKind; 6] =
+        [SolverKind::Nlgs, SolverKind::Cpg, SolverKind::Pcpg, SolverKind::Latin, SolverKind::Jacobi, SolverKind::Apgd];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            SolverKind::Nlgs => "nlgs",
+            SolverKind::Cpg => "cpg",
+            SolverKind::Pcpg => "pcpg",
+            SolverKind::Latin => "latin",
+            SolverKind::Jacobi => "jacobi",
+            SolverKind::Apgd => "apgd",
+        }
+    }
+}
+
+impl fmt::Display for SolverKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Contact ordering of an NLGS sweep.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Ordering {
+    Forward,
+    Backward,
+    /// Forward then backward (symmetric Gauss–Seidel).
+    Symmetric,
+    /// A new random permutation every sweep.
+    Shuffled,
+}
+
+/// When a solve stops.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum StopCriterion {
+    /// The natural-map residual (notes §7.1) is at most `tol`.
+    Natural,
+    /// LMGC90's `Quad` test (RMS of local velocity changes, notes §3.2).
+    Quad,
+    /// LMGC90's `Maxm` test (every contact).
+    Maxm,
+    /// LMGC90's `QM/16` compromise.
+    Qm16,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SolverOptions {
+    pub tol: f64,
+    pub max_iter: usize,
+    pub criterion: StopCriterion,
+    /// NLGS relaxation ω (1 = plain Gauss–Seidel).
+    pub omega: f64,
+    pub ordering: Ordering,
+    pub seed: u64,
+    /// Projected Jacobi relaxation (step = ω / mean diagonal of the contact block).
+    pub jacobi_omega: f64,
+    /// LATIN search direction: `k = latin_k · diag(W_αα)` per component (compliance units).
+    pub latin_k: f64,
+    /// APGD: iterations between two updates of the Tresca thresholds `s = μ r_n`.
+    pub apgd_threshold_every: usize,
+    /// Record the error every this many iterations for work-precision curves (0: only when checked);
+    /// time spent on these extra evaluations is not counted in the solve time.
+    pub history_every: usize,
+}
+
+impl Default for SolverOptions {
+    fn default() -> Self {
+        Self {
+            tol: 1e-8,
+            max_iter: 10_000,
+            criterion: StopCriterion::Natural,
+            omega: 1.0,
+            ordering: Ordering::Forward,
+            seed: 0,
+            jacobi_omega: 0.5,
+            latin_k: 1.0,
+            apgd_threshold_every: 10,
+            history_every: 0,
+        }
+    }
+}
+
+/// One point of the error history.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct HistoryPoint {
+    pub iteration: usize,
+    pub seconds: f64,
+    pub w_products: usize,
+    pub error: f64,
+}
+
+/// What every solve returns. `error` is always the f64 natural-map error of the returned `r`.
+#[derive(Clone, Debug, Serialize)]
+pub struct SolveReport {
+    pub solver: SolverKind,
+    pub converged: bool,
+    pub iterations: usize,
+    pub error: f64,
+    pub seconds: f64,
+    pub w_products: usize,
+    pub history: Vec<HistoryPoint>,
+    /// Why the solve stopped, in words.
+    pub stop_reason: String,
+    pub r: Vec<f64>,
+    pub u: Vec<f64>,
+}
+
+/// Solves `problem` from `r0` (warm start; zero if `None`).
+pub fn solve(problem: &ContactProblem, kind: SolverKind, opts: &SolverOptions, r0: Option<&[f64]>) -> SolveReport {
+    let n = 2 * problem.n_contacts();
+    let r0: Vec<f64> = match r0 {
+        Some(r) if r.len() == n && r.iter().all(|x| x.is_finite()) => r.to_vec(),
+        _ => vec![0.0; n],
+    };
+    match kind {
+        SolverKind::Nlgs => nlgs::solve(problem, opts, r0),
+        SolverKind::Cpg => cpg::solve(problem, opts, r0, false),
+        SolverKind::Pcpg => cpg::solve(problem, opts, r0, true),
+        SolverKind::Latin => latin::solve(problem, opts, r0),
+        SolverKind::Jacobi => jacobi::solve(problem, opts, r0),
+        SolverKind::Apgd => apgd::solve(problem, opts, r0),
+    }
+}

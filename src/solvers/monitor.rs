@@ -1,0 +1,175 @@
+//! Shared bookkeeping of every solve: iteration count, operator products, wall time, error
+//! history and the stopping decision.
+//!
+//! With the natural-map criterion the cheap "light" change `‖r_k − r_{k−1}‖/‖r_k‖` is watched
+//! every iteration and the full f64 error is evaluated when it drops below an adaptive threshold
+//! (Siconos' LIGHT_WITH_FULL_FINAL rule, notes §3.3), or every iteration when the solver already
+//! holds `u = W r + q`. A solve is `converged` only if the full error of the returned `r` is ≤ tol
+//! (or, when asked, LMGC90's test holds); the final error is always reported.
+
+use super::lmgc_criteria::LmgcMeasures;
+use super::{HistoryPoint, SolveReport, SolverKind, SolverOptions, StopCriterion};
+use crate::problem::residual::natural_map_error;
+use crate::problem::{norm, ContactProblem, Mat2};
+use std::time::{Duration, Instant};
+
+pub struct Monitor<'a> {
+    problem: &'a ContactProblem,
+    opts: &'a SolverOptions,
+    kind: SolverKind,
+    start: Instant,
+    excluded: Duration,
+    pub w_products: usize,
+    iteration: usize,
+    r_prev: Vec<f64>,
+    tol_light: f64,
+    history: Vec<HistoryPoint>,
+    diag: Option<Vec<Mat2>>,
+    converged: bool,
+    stop_reason: Option<String>,
+    scratch_u: Vec<f64>,
+}
+
+impl<'a> Monitor<'a> {
+    pub fn new(problem: &'a ContactProblem, opts: &'a SolverOptions, kind: SolverKind, r0: &[f64]) -> Self {
+        let diag = (opts.criterion != StopCriterion::Natural).then(|| problem.w.diag_blocks());
+        Self {
+            problem,
+            opts,
+            kind,
+            start: Instant::now(),
+            excluded: Duration::ZERO,
+            w_products: 0,
+            iteration: 0,
+            r_prev: r0.to_vec(),
+            tol_light: opts.tol,
+            history: Vec::new(),
+            diag,
+            converged: false,
+            stop_reason: None,
+            scratch_u: vec![0.0; r0.len()],
+        }
+    }
+
+    pub fn iteration(&self) -> usize {
+        self.iteration
+    }
+
+    pub fn elapsed(&self) -> f64 {
+        (self.start.elapsed() - self.excluded).as_secs_f64()
+    }
+
+    fn record(&mut self, error: f64) {
+        let point = HistoryPoint { iteration: self.iteration, seconds: self.elapsed(), w_products: self.w_products, error };
+        self.history.push(point);
+    }
+
+    /// Stops the solve early for a reason the solver knows (breakdown, stagnation).
+    pub fn stop_with(&mut self, reason: impl Into<String>) {
+        self.stop_reason.get_or_insert_with(|| reason.into());
+    }
+
+    /// Called once per iteration with the new iterate (and `u = W r + q` if the solver has it).
+    /// Returns true when the solve must stop.
+    pub fn observe(&mut self, r: &[f64], u: Option<&[f64]>) -> bool {
+        self.iteration += 1;
+        if r.iter().any(|x| !x.is_finite()) {
+            self.stop_with("diverged: the iterate holds NaN or Inf");
+            return true;
+        }
+        let light = {
+            let d: f64 = r.iter().zip(&self.r_prev).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
+            let n = norm(r);
+            if n > 0.0 {
+                d / n
+            } else {
+                d
+            }
+        };
+        let last = self.iteration >= self.opts.max_iter;
+        let history_due = self.opts.history_every > 0 && self.iteration % self.opts.history_every == 0;
+        match self.opts.criterion {
+            StopCriterion::Natural => {
+                let needed = u.is_some() || light <= self.tol_light || last;
+                if needed || history_due {
+                    let err = self.full_error(r, u, !needed);
+                    self.record(err);
+                    if err <= self.opts.tol {
+                        self.converged = true;
+                    } else if light <= self.tol_light && err > 0.0 {
+                        self.tol_light = (light * self.opts.tol / err).min(self.tol_light);
+                    }
+                }
+            }
+            criterion => {
+                let m = LmgcMeasures::compute(self.diag.as_ref().unwrap(), &self.r_prev, r, self.opts.tol);
+                self.converged = m.satisfied(criterion);
+                if history_due || self.converged {
+                    let err = self.full_error(r, u, true);
+                    self.record(err);
+                }
+            }
+        }
+        self.r_prev.copy_from_slice(r);
+        if self.converged {
+            self.stop_with("converged");
+        } else if last {
+            self.stop_with(format!("not converged: max_iter = {} reached", self.opts.max_iter));
+        }
+        self.stop_reason.is_some()
+    }
+
+    /// Full error of `r`; one product unless `u` is given. `excluded` time is left out of the solve time.
+    fn full_error(&mut self, r: &[f64], u: Option<&[f64]>, excluded: bool) -> f64 {
+        let t = Instant::now();
+        let err = match u {
+            Some(u) => natural_map_error(&self.problem.q, &self.problem.mu, r, u),
+            None => {
+                let mut uu = std::mem::take(&mut self.scratch_u);
+                self.problem.w.apply(r, &mut uu);
+                for (x, q) in uu.iter_mut().zip(&self.problem.q) {
+                    *x += q;
+                }
+                if !excluded {
+                    self.w_products += 1;
+                }
+                let e = natural_map_error(&self.problem.q, &self.problem.mu, r, &uu);
+                self.scratch_u = uu;
+                e
+            }
+        };
+        if excluded {
+            self.excluded += t.elapsed();
+        }
+        err
+    }
+
+    /// Final report: `u` and the error of the returned `r` are recomputed in f64 here.
+    pub fn finish(mut self, r: Vec<f64>) -> SolveReport {
+        let seconds = self.elapsed();
+        let u = self.problem.velocity(&r);
+        let error = natural_map_error(&self.problem.q, &self.problem.mu, &r, &u);
+        let converged = match self.opts.criterion {
+            StopCriterion::Natural => error <= self.opts.tol,
+            _ => self.converged && error.is_finite(),
+        };
+        if self.stop_reason.is_none() {
+            self.stop_with(if converged { "converged" } else { "not converged" });
+        }
+        if self.history.last().map(|h| h.iteration) != Some(self.iteration) {
+            self.history.push(HistoryPoint { iteration: self.iteration, seconds, w_products: self.w_products, error });
+        }
+        SolveReport {
+            solver: self.kind,
+            converged,
+            iterations: self.iteration,
+            error,
+            seconds,
+            w_products: self.w_products,
+            history: self.history,
+            stop_reason: self.stop_reason.unwrap(),
+            r,
+            u,
+        }
+    }
+}

@@ -1,0 +1,49 @@
+//! Checks of a returned solution that do not trust the solver.
+#![allow(dead_code)]
+
+use moreau::ContactProblem;
+use std::path::PathBuf;
+
+pub fn shared_data(name: &str) -> Option<PathBuf> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/siconos-fc2d").join(name);
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!("skipping: {} not found (shared/ must sit beside the repository)", p.display());
+        None
+    }
+}
+
+/// `r` lies in the Coulomb cone exactly, and Signorini/Coulomb hold at `u = W r + q` within
+/// `tol` relative to the scale of the problem. Returns a description of the first violation.
+pub fn check_solution(p: &ContactProblem, r: &[f64], tol: f64) -> Result<(), String> {
+    let u = p.velocity(r);
+    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    // Below machine epsilon a scale is noise: judge absolutely then, as the error measure does.
+    let floor = |s: f64| if s > f64::EPSILON { s } else { 1.0 };
+    let su = floor(norm(&u).max(norm(&p.q)));
+    let sr = floor(norm(r));
+    for a in 0..p.n_contacts() {
+        let (rn, rt, un, ut, mu) = (r[2 * a], r[2 * a + 1], u[2 * a], u[2 * a + 1], p.mu[a]);
+        if !(rn >= 0.0 && rt.abs() <= mu * rn) {
+            return Err(format!("contact {a}: r = ({rn}, {rt}) outside the cone (mu = {mu})"));
+        }
+        if un < -tol * su {
+            return Err(format!("contact {a}: u_n = {un} < 0 (penetration)"));
+        }
+        // complementarity r_n u_n = 0 (relative)
+        if (rn / sr) * (un / su) > tol {
+            return Err(format!("contact {a}: r_n u_n = {} not complementary", rn * un));
+        }
+        if rn > tol * sr {
+            let slack = mu * rn - rt.abs();
+            if slack > tol * sr && ut.abs() > tol * su {
+                return Err(format!("contact {a}: sticks (|r_t| < mu r_n) but slides with u_t = {ut}"));
+            }
+            if rt.abs() > 0.0 && slack <= tol * sr && rt * ut > tol * sr * su {
+                return Err(format!("contact {a}: friction r_t = {rt} does not oppose sliding u_t = {ut}"));
+            }
+        }
+    }
+    Ok(())
+}

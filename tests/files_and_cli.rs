@@ -1,0 +1,93 @@
+//! Problem files: round trip, bad input with clear errors, and the `moreau solve` command.
+
+use moreau::io::siconos::{format_fc2d, parse_fc2d_str, Storage};
+use moreau::problem::generate::{lattice_packing, random_small};
+use std::process::Command;
+
+fn moreau() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_moreau"))
+}
+
+#[test]
+fn written_files_read_back_to_the_same_operator() {
+    for (p, storage) in [(random_small(3, 0.4, 5), Storage::Dense), (lattice_packing(5, 4, 0.3, 2), Storage::Sparse)] {
+        let text = format_fc2d(&p, storage);
+        let back = parse_fc2d_str(&text).unwrap();
+        assert_eq!(back.q, p.q);
+        assert_eq!(back.mu, p.mu);
+        let x: Vec<f64> = (0..2 * p.n_contacts()).map(|i| (i as f64 * 0.37).sin()).collect();
+        let (mut a, mut b) = (vec![0.0; x.len()], vec![0.0; x.len()]);
+        p.w.apply(&x, &mut a);
+        back.w.apply(&x, &mut b);
+        for (u, v) in a.iter().zip(&b) {
+            assert!((u - v).abs() <= 1e-14 * (1.0 + u.abs()), "{u} vs {v}");
+        }
+    }
+}
+
+fn assert_error(text: &str, needle: &str) {
+    match parse_fc2d_str(text) {
+        Ok(_) => panic!("accepted bad input, expected error about '{needle}'"),
+        Err(e) => assert!(e.contains(needle), "error '{e}' does not mention '{needle}'"),
+    }
+}
+
+#[test]
+fn bad_files_are_rejected_with_a_reason() {
+    let good = format_fc2d(&random_small(2, 0.3, 1), Storage::Dense);
+    assert!(parse_fc2d_str(&good).is_ok());
+    assert_error(&good[..good.len() / 2], "unexpected end of file");
+    assert_error(&good.replacen("2\n2\n", "3\n2\n", 1), "only 2D");
+    assert_error(&good.replacen("2\n2\n0\n4\n4", "2\n2\n0\n6\n6", 1), "expected 4×4");
+    let lines: Vec<&str> = good.lines().collect();
+    let mu_line = lines.len() - 1;
+    let with_mu = |mu: &str| {
+        let mut l = lines.clone();
+        l[mu_line] = mu;
+        l.join("\n")
+    };
+    assert_error(&with_mu(" -0.3 0.3 "), "negative");
+    assert_error(&with_mu(" nan 0.3 "), "not a finite number");
+    assert_error(&with_mu(" 0.3 0.3 0.3 "), "trailing");
+    assert_error(&good.replacen("2\n2\n0", "2\n2\n7", 1), "unknown matrix storage tag 7");
+    assert_error("", "end of file");
+    assert_error("2\n1\n0\n2\n2\n2\t2\n 0 0 0 0 \n -1 0 \n 0.5\n", "W_nn must be > 0");
+    let sparse = format_fc2d(&lattice_packing(3, 2, 0.3, 2), Storage::Sparse);
+    assert_error(&sparse.replacen("col 1 :", "col 5 :", 1), "out of order");
+    assert_error(&sparse.replacen("CSparse", "Sparse", 1), "CSparse banner");
+}
+
+#[test]
+fn solve_command_writes_the_report_and_fails_cleanly_on_bad_input() {
+    let dir = std::env::temp_dir().join(format!("moreau-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("lattice.dat");
+    let out = moreau().args(["generate", "lattice", "--nx", "6", "--ny", "5", "--out"]).arg(&file).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+
+    let json = dir.join("result.json");
+    let out = moreau().arg("solve").arg(&file).args(["--solver", "pcpg", "--device", "cpu", "--tol", "1e-8", "--out"]).arg(&json).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("pcpg on cpu"));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    for key in ["solver", "device", "contacts", "converged", "iterations", "error", "seconds", "r", "u"] {
+        assert!(v.get(key).is_some(), "missing key {key}");
+    }
+    let nc = v["contacts"].as_u64().unwrap() as usize;
+    assert_eq!(v["r"].as_array().unwrap().len(), 2 * nc);
+    assert_eq!(v["solver"], "pcpg");
+    assert_eq!(v["device"], "cpu");
+    assert!(v["error"].as_f64().unwrap() <= 1e-8 && v["converged"].as_bool().unwrap());
+
+    let bad = dir.join("bad.dat");
+    std::fs::write(&bad, "2\n3\n0\n6\n6\n6\t6\n 1 2 3\n").unwrap();
+    let out = moreau().arg("solve").arg(&bad).args(["--device", "cpu"]).output().unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.dat") && err.contains("end of file"), "{err}");
+
+    let out = moreau().arg("solve").arg(dir.join("missing.dat")).output().unwrap();
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("missing.dat"));
+    let out = moreau().arg("solve").arg(&file).args(["--tol", "nan"]).output().unwrap();
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--tol"));
+}

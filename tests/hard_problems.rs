@@ -1,0 +1,53 @@
+//! Problems that break weak solvers, with the solver of ours that handles them.
+
+mod common;
+use moreau::problem::generate::{heavy_column, lattice_packing};
+use moreau::{solve, SolverKind, SolverOptions};
+
+#[test]
+fn heavy_grain_on_a_light_column_conjugate_gradients_reach_1e8() {
+    // 20 light disks under one 1,000 times heavier: Gauss–Seidel moves the heavy load down by
+    // tiny increments per sweep and stalls; the conjugate projected gradients do not.
+    let p = heavy_column(20, 1000.0, 0.5);
+    let opts = SolverOptions { tol: 1e-8, max_iter: 20_000, ..Default::default() };
+    let gs = solve(&p, SolverKind::Nlgs, &opts, None);
+    assert!(!gs.converged && gs.error > 1e-8, "NLGS was expected to stall here (error {:e})", gs.error);
+    for kind in [SolverKind::Cpg, SolverKind::Pcpg] {
+        let rep = solve(&p, kind, &SolverOptions { max_iter: 1000, ..opts.clone() }, None);
+        assert!(rep.converged, "{kind}: {} error {:e}", rep.stop_reason, rep.error);
+        // The error mixes impulse and velocity units (‖r‖ ≈ 10 ≫ ‖q‖ ≈ 0.01 here): check at 1e-5.
+        common::check_solution(&p, &rep.r, 1e-5).unwrap();
+        // Equilibrium: the ground carries the weight impulse of the whole column, (20 + 1000) g h.
+        let expected = 1020.0 * 9.81 * 1e-3;
+        assert!((rep.r[0] - expected).abs() <= 1e-6 * expected, "{kind}: ground impulse {} vs {expected}", rep.r[0]);
+    }
+}
+
+#[test]
+fn redundant_lattice_every_solver_agrees_on_velocities() {
+    // Square lattice: W is singular (hyperstatic), impulses are not unique but velocities are.
+    let p = lattice_packing(8, 8, 0.3, 3);
+    let opts = SolverOptions { tol: 1e-8, max_iter: 50_000, ..Default::default() };
+    let reference = solve(&p, SolverKind::Nlgs, &opts, None);
+    assert!(reference.converged, "nlgs: {:e}", reference.error);
+    let scale = p.q.iter().map(|x| x.abs()).fold(0.0, f64::max);
+    for kind in [SolverKind::Cpg, SolverKind::Pcpg, SolverKind::Latin, SolverKind::Jacobi, SolverKind::Apgd] {
+        let rep = solve(&p, kind, &opts, None);
+        assert_eq!(rep.converged, rep.error <= opts.tol);
+        if rep.converged {
+            common::check_solution(&p, &rep.r, 1e-6).unwrap_or_else(|e| panic!("{kind}: {e}"));
+            let du = rep.u.iter().zip(&reference.u).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            assert!(du <= 1e-5 * scale.max(1e-12), "{kind}: velocities differ by {du:e}");
+        }
+    }
+}
+
+#[test]
+fn warm_start_from_the_solution_needs_one_iteration() {
+    let p = lattice_packing(6, 6, 0.5, 1);
+    let opts = SolverOptions { tol: 1e-9, max_iter: 50_000, ..Default::default() };
+    let cold = solve(&p, SolverKind::Nlgs, &opts, None);
+    assert!(cold.converged);
+    let warm = solve(&p, SolverKind::Nlgs, &opts, Some(&cold.r));
+    assert!(warm.converged && warm.iterations <= 2, "warm start took {} iterations", warm.iterations);
+}
