@@ -51,3 +51,22 @@ fn warm_start_from_the_solution_needs_one_iteration() {
     let warm = solve(&p, SolverKind::Nlgs, &opts, Some(&cold.r));
     assert!(warm.converged && warm.iterations <= 2, "warm start took {} iterations", warm.iterations);
 }
+
+#[test]
+fn lmgc_criteria_stop_and_the_true_error_is_still_reported() {
+    use moreau::solvers::StopCriterion;
+    let p = lattice_packing(10, 10, 0.5, 4);
+    let run = |criterion| {
+        let opts = SolverOptions { tol: 1e-4, max_iter: 50_000, criterion, ..Default::default() };
+        solve(&p, SolverKind::Nlgs, &opts, None)
+    };
+    let (quad, maxm, qm16) = (run(StopCriterion::Quad), run(StopCriterion::Maxm), run(StopCriterion::Qm16));
+    for rep in [&quad, &maxm, &qm16] {
+        assert!(rep.converged && rep.error.is_finite() && rep.error > 0.0, "{}", rep.stop_reason);
+        let (e, _) = moreau::problem::residual::error_of(&p, &rep.r);
+        assert_eq!(e, rep.error, "reported error is the natural-map error of r");
+    }
+    // Maxm is the severe test, Quad the lax one, QM/16 in between.
+    assert!(maxm.iterations >= qm16.iterations && qm16.iterations >= quad.iterations);
+    assert!(maxm.iterations > quad.iterations, "maxm {} quad {}", maxm.iterations, quad.iterations);
+}

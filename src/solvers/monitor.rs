@@ -80,7 +80,8 @@ impl<'a> Monitor<'a> {
         let light = {
             let d: f64 = r.iter().zip(&self.r_prev).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
             let n = norm(r);
-            if n > 0.0 {
+            // Same rule as the error's normalisation: below machine epsilon, judge absolutely.
+            if n > f64::EPSILON {
                 d / n
             } else {
                 d
