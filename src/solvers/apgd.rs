@@ -79,34 +79,33 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut gamma: Vec<f64>) -> S
         std::mem::swap(&mut gamma, &mut next);
         std::mem::swap(&mut w_gamma, &mut w_next);
 
+        // New Tresca thresholds from the current normal impulses; momentum restarts on the new box.
+        let mut rebox = |gamma: &mut Vec<f64>, w_gamma: &mut Vec<f64>, y: &mut Vec<f64>, w_y: &mut Vec<f64>| {
+            thresholds = update_thresholds(gamma);
+            project(gamma, &thresholds);
+            p.w.apply(gamma, w_gamma);
+            y.copy_from_slice(gamma);
+            w_y.copy_from_slice(w_gamma);
+        };
         if monitor.iteration() % every == every - 1 {
-            // New Tresca thresholds; momentum restarts on the new box.
-            thresholds = update_thresholds(&gamma);
-            project(&mut gamma, &thresholds);
-            p.w.apply(&gamma, &mut w_gamma);
+            rebox(&mut gamma, &mut w_gamma, &mut y, &mut w_y);
             monitor.w_products += 1;
-            y.copy_from_slice(&gamma);
-            w_y.copy_from_slice(&w_gamma);
             theta = 1.0;
         }
-        for i in 0..n {
-            u[i] = w_gamma[i] + p.q[i];
-        }
-        let mut err = natural_map_error(&p.q, &p.mu, &gamma, &u);
-        let outside_cone = (0..p.n_contacts()).any(|a| gamma[2 * a + 1].abs() > p.mu[a] * gamma[2 * a]);
-        if err <= opts.tol && outside_cone {
-            // Thresholds lag the normal impulses: finish on the cone itself.
-            thresholds = update_thresholds(&gamma);
-            project(&mut gamma, &thresholds);
-            p.w.apply(&gamma, &mut w_gamma);
-            monitor.w_products += 1;
-            y.copy_from_slice(&gamma);
-            w_y.copy_from_slice(&w_gamma);
-            theta = 1.0;
+        let error_at = |gamma: &[f64], w_gamma: &[f64], u: &mut [f64]| {
             for i in 0..n {
                 u[i] = w_gamma[i] + p.q[i];
             }
-            err = natural_map_error(&p.q, &p.mu, &gamma, &u);
+            natural_map_error(&p.q, &p.mu, gamma, u)
+        };
+        let mut err = error_at(&gamma, &w_gamma, &mut u);
+        let outside_cone = (0..p.n_contacts()).any(|a| gamma[2 * a + 1].abs() > p.mu[a] * gamma[2 * a]);
+        if err <= opts.tol && outside_cone {
+            // Thresholds lag the normal impulses: finish on the cone itself.
+            rebox(&mut gamma, &mut w_gamma, &mut y, &mut w_y);
+            monitor.w_products += 1;
+            theta = 1.0;
+            err = error_at(&gamma, &w_gamma, &mut u);
         }
         if err < best.0 {
             best.0 = err;
