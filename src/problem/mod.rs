@@ -69,11 +69,16 @@ impl ContactProblem {
     /// `u = W r + q` (one operator product).
     pub fn velocity(&self, r: &[f64]) -> Vec<f64> {
         let mut u = vec![0.0; r.len()];
-        self.w.apply(r, &mut u);
+        self.velocity_into(r, &mut u);
+        u
+    }
+
+    /// `u = W r + q` into a caller's buffer (one operator product).
+    pub fn velocity_into(&self, r: &[f64], u: &mut [f64]) {
+        self.w.apply(r, u);
         for (ui, qi) in u.iter_mut().zip(&self.q) {
             *ui += qi;
         }
-        u
     }
 
     /// Whether every contact is frictionless, so solvers may drop the tangential rows.

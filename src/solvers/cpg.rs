@@ -31,9 +31,8 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, precondi
     let mut neg_grad = vec![0.0; n]; // U = −(W r + q)
     let mut u = vec![0.0; n];
     let residual = |r: &[f64], neg_grad: &mut [f64], u: &mut [f64]| {
-        p.w.apply(r, u);
+        p.velocity_into(r, u);
         for k in 0..n {
-            u[k] += p.q[k];
             neg_grad[k] = -u[k];
         }
     };

@@ -32,11 +32,8 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>) -> Solve
     monitor.w_products += 1;
     loop {
         jacobi_update(&mut r, &u, &p.mu, &step);
-        p.w.apply(&r, &mut u);
+        p.velocity_into(&r, &mut u);
         monitor.w_products += 1;
-        for (x, q) in u.iter_mut().zip(&p.q) {
-            *x += q;
-        }
         if monitor.observe(&r, Some(&u)) {
             break;
         }

@@ -30,7 +30,7 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>) -> SolveRep
     let (mut z_hat, mut w_hat) = (vec![0.0; n], vec![0.0; n]);
     local_stage(&p.mu, &k, &z, &w, &mut z_hat, &mut w_hat);
     let mut rhs = vec![0.0; n];
-    let mut cg = Cg::new(n);
+    let mut cg = Cg::new(p, &k);
     let mut inner_tol: f64 = 1e-2;
     loop {
         for i in 0..n {
@@ -73,6 +73,7 @@ fn local_stage(mu: &[f64], k: &[f64], z: &[f64], w: &[f64], z_hat: &mut [f64], w
 
 /// Jacobi-preconditioned conjugate gradient on `(W + diag(k)) x = b`.
 struct Cg {
+    diag: Vec<f64>, // diagonal of W + k (the preconditioner)
     res: Vec<f64>,
     dir: Vec<f64>,
     prec_res: Vec<f64>,
@@ -80,14 +81,16 @@ struct Cg {
 }
 
 impl Cg {
-    fn new(n: usize) -> Self {
-        Self { res: vec![0.0; n], dir: vec![0.0; n], prec_res: vec![0.0; n], a_dir: vec![0.0; n] }
+    fn new(p: &ContactProblem, k: &[f64]) -> Self {
+        let n = k.len();
+        let diag = p.w.diag_blocks().iter().flat_map(|d| [d[0], d[3]]).zip(k).map(|(d, k)| d + k).collect();
+        Self { diag, res: vec![0.0; n], dir: vec![0.0; n], prec_res: vec![0.0; n], a_dir: vec![0.0; n] }
     }
 
     /// Returns the number of products with `W`.
     fn solve(&mut self, p: &ContactProblem, k: &[f64], b: &[f64], x: &mut [f64], rel_tol: f64) -> usize {
         let n = b.len();
-        let diag: Vec<f64> = p.w.diag_blocks().iter().flat_map(|d| [d[0], d[3]]).zip(k).map(|(d, k)| d + k).collect();
+        let diag = &self.diag;
         let apply = |v: &[f64], out: &mut [f64]| {
             p.w.apply(v, out);
             for i in 0..n {

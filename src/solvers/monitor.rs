@@ -127,10 +127,7 @@ impl<'a> Monitor<'a> {
             Some(u) => natural_map_error(&self.problem.q, &self.problem.mu, r, u),
             None => {
                 let mut uu = std::mem::take(&mut self.scratch_u);
-                self.problem.w.apply(r, &mut uu);
-                for (x, q) in uu.iter_mut().zip(&self.problem.q) {
-                    *x += q;
-                }
+                self.problem.velocity_into(r, &mut uu);
                 if !excluded {
                     self.w_products += 1;
                 }
