@@ -7,9 +7,13 @@
 //! * [`cli`]: the `moreau` command line.
 
 pub mod cli;
+pub mod detection;
 pub mod io;
 pub mod problem;
+pub mod scene;
 pub mod solvers;
+pub mod stepping;
+pub mod world;
 
 pub use problem::ContactProblem;
 pub use solvers::{solve, SolveReport, SolverKind, SolverOptions};

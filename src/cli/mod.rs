@@ -1,5 +1,7 @@
 //! The `moreau` command line.
 
+mod run;
+
 use crate::io::report::{summary_line, SolveOutput};
 use crate::io::siconos::{read_fc2d, write_fc2d, Storage};
 use crate::problem::generate;
@@ -83,6 +85,8 @@ struct SolveArgs {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Simulate a scene file (TOML) and write steps.csv, summary.json, VTK and PNG outputs.
+    Run(run::RunArgs),
     /// Solve one frictional contact problem read from a file.
     Solve(SolveArgs),
     /// Write a built-in problem as a Siconos fc2d file.
@@ -122,6 +126,7 @@ pub fn main() -> ExitCode {
 
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
+        Command::Run(args) => run::run_command(args),
         Command::Solve(args) => solve_command(args),
         Command::Generate { kind, out, n, mass_ratio, nx, ny, mu, seed, storage } => {
             if !(mu.is_finite() && mu >= 0.0) {

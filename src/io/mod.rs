@@ -1,4 +1,8 @@
-//! Files in and out: Siconos fc2d problems, JSON solve reports.
+//! Files in and out: Siconos fc2d problems, JSON solve reports, simulation outputs (steps.csv,
+//! summary.json, VTK time series, PNG pictures).
 
+pub mod picture;
 pub mod report;
+pub mod run_output;
 pub mod siconos;
+pub mod vtk;

@@ -36,15 +36,39 @@ pub struct Contact {
     pub lever_j: [f64; 2],
 }
 
+/// Which generalised velocities and contact rows exist. An effect that is off costs nothing:
+/// without rotation bodies carry two dofs and contacts store no lever arms; without friction the
+/// tangential row of a contact is never gathered or scattered (`u_t ≡ 0`, `r_t ≡ 0`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Dofs {
+    pub rotation: bool,
+    pub friction: bool,
+}
+
+impl Dofs {
+    pub const ALL: Dofs = Dofs { rotation: true, friction: true };
+
+    /// Generalised velocities per body: (v_x, v_y, ω) or (v_x, v_y).
+    pub fn per_body(self) -> usize {
+        if self.rotation {
+            3
+        } else {
+            2
+        }
+    }
+}
+
 /// Precomputed rows of `B` for one contact: body i gets `+[e_x, e_y, ρ_i×e]`, body j `−[e_x, e_y, ρ_j×e]`.
+/// The rotational parts `ρ×e` live in a separate array that exists only when rotation is on.
 #[derive(Clone, Copy, Debug)]
 struct ContactRows {
     i: usize,
     j: usize, // NO_BODY when the antagonist is fixed
     n: [f64; 2],
-    gi: [f64; 2], // (ρ_i × n, ρ_i × t)
-    gj: [f64; 2],
 }
+
+/// `(ρ_i × n, ρ_i × t, ρ_j × n, ρ_j × t)`.
+type Levers = [f64; 4];
 
 const NO_BODY: usize = usize::MAX;
 
@@ -52,6 +76,8 @@ const NO_BODY: usize = usize::MAX;
 pub struct MatrixFree {
     bodies: Vec<Body>,
     rows: Vec<ContactRows>,
+    levers: Vec<Levers>,
+    dofs: Dofs,
 }
 
 fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -59,8 +85,13 @@ fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
 }
 
 impl MatrixFree {
-    /// Builds the operator, checking indices, masses and normals.
+    /// Builds the operator with every dof (rotation and friction), checking indices, masses and normals.
     pub fn new(bodies: Vec<Body>, contacts: &[Contact]) -> Result<Self, String> {
+        Self::with_dofs(bodies, contacts, Dofs::ALL)
+    }
+
+    /// Builds the operator for the dofs a scene uses; lever arms are ignored without rotation.
+    pub fn with_dofs(bodies: Vec<Body>, contacts: &[Contact], dofs: Dofs) -> Result<Self, String> {
         for (k, b) in bodies.iter().enumerate() {
             if !(b.inv_mass.is_finite() && b.inv_mass >= 0.0) {
                 return Err(format!("body {k}: inverse mass {} must be finite and >= 0 (mass > 0)", b.inv_mass));
@@ -70,6 +101,7 @@ impl MatrixFree {
             }
         }
         let mut rows = Vec::with_capacity(contacts.len());
+        let mut levers = Vec::with_capacity(if dofs.rotation { contacts.len() } else { 0 });
         for (a, c) in contacts.iter().enumerate() {
             let nb = bodies.len();
             if c.i >= nb || c.j.is_some_and(|j| j >= nb || j == c.i) {
@@ -79,20 +111,17 @@ impl MatrixFree {
             if !len.is_finite() || (len - 1.0).abs() > 1e-6 {
                 return Err(format!("contact {a}: normal {:?} is not a unit vector", c.normal));
             }
-            if !c.lever_i.iter().chain(&c.lever_j).all(|x| x.is_finite()) {
-                return Err(format!("contact {a}: lever arm is not finite"));
-            }
             let n = [c.normal[0] / len, c.normal[1] / len];
-            let t = [-n[1], n[0]];
-            rows.push(ContactRows {
-                i: c.i,
-                j: c.j.unwrap_or(NO_BODY),
-                n,
-                gi: [cross(c.lever_i, n), cross(c.lever_i, t)],
-                gj: [cross(c.lever_j, n), cross(c.lever_j, t)],
-            });
+            rows.push(ContactRows { i: c.i, j: c.j.unwrap_or(NO_BODY), n });
+            if dofs.rotation {
+                if !c.lever_i.iter().chain(&c.lever_j).all(|x| x.is_finite()) {
+                    return Err(format!("contact {a}: lever arm is not finite"));
+                }
+                let t = [-n[1], n[0]];
+                levers.push([cross(c.lever_i, n), cross(c.lever_i, t), cross(c.lever_j, n), cross(c.lever_j, t)]);
+            }
         }
-        Ok(Self { bodies, rows })
+        Ok(Self { bodies, rows, levers, dofs })
     }
 
     pub fn n_contacts(&self) -> usize {
@@ -103,43 +132,77 @@ impl MatrixFree {
         self.bodies.len()
     }
 
-    /// `v += M⁻¹ B_aᵀ r_a` for one contact (velocities stored as (v_x, v_y, ω) per body).
+    pub fn dofs(&self) -> Dofs {
+        self.dofs
+    }
+
+    /// Bytes held by the operator (bodies, contact rows, lever arms).
+    pub fn memory_bytes(&self) -> usize {
+        self.bodies.capacity() * std::mem::size_of::<Body>()
+            + self.rows.capacity() * std::mem::size_of::<ContactRows>()
+            + self.levers.capacity() * std::mem::size_of::<Levers>()
+    }
+
+    /// `v += M⁻¹ B_aᵀ r_a` for one contact (velocities stored with [`Dofs::per_body`] entries per body).
     #[inline]
     pub(crate) fn scatter_one(&self, a: usize, rn: f64, rt: f64, v: &mut [f64]) {
         let c = &self.rows[a];
-        let (n, t) = (c.n, [-c.n[1], c.n[0]]);
-        let p = [rn * n[0] + rt * t[0], rn * n[1] + rt * t[1]];
+        let n = c.n;
+        let p = if self.dofs.friction { [rn * n[0] - rt * n[1], rn * n[1] + rt * n[0]] } else { [rn * n[0], rn * n[1]] };
+        let s = self.dofs.per_body();
         let b = self.bodies[c.i];
-        v[3 * c.i] += b.inv_mass * p[0];
-        v[3 * c.i + 1] += b.inv_mass * p[1];
-        v[3 * c.i + 2] += b.inv_inertia * (rn * c.gi[0] + rt * c.gi[1]);
+        v[s * c.i] += b.inv_mass * p[0];
+        v[s * c.i + 1] += b.inv_mass * p[1];
+        if self.dofs.rotation {
+            let g = &self.levers[a];
+            let torque_i = if self.dofs.friction { rn * g[0] + rt * g[1] } else { rn * g[0] };
+            v[s * c.i + 2] += b.inv_inertia * torque_i;
+            if c.j != NO_BODY {
+                let torque_j = if self.dofs.friction { rn * g[2] + rt * g[3] } else { rn * g[2] };
+                v[s * c.j + 2] -= self.bodies[c.j].inv_inertia * torque_j;
+            }
+        }
         if c.j != NO_BODY {
             let b = self.bodies[c.j];
-            v[3 * c.j] -= b.inv_mass * p[0];
-            v[3 * c.j + 1] -= b.inv_mass * p[1];
-            v[3 * c.j + 2] -= b.inv_inertia * (rn * c.gj[0] + rt * c.gj[1]);
+            v[s * c.j] -= b.inv_mass * p[0];
+            v[s * c.j + 1] -= b.inv_mass * p[1];
         }
     }
 
-    /// `B_a v`: the relative velocity (u_n, u_t) of contact `a`.
+    /// `B_a v`: the relative velocity (u_n, u_t) of contact `a` (u_t = 0 without friction).
     #[inline]
     pub(crate) fn gather_one(&self, a: usize, v: &[f64]) -> [f64; 2] {
         let c = &self.rows[a];
-        let (n, t) = (c.n, [-c.n[1], c.n[0]]);
-        let (vx, vy, w) = (v[3 * c.i], v[3 * c.i + 1], v[3 * c.i + 2]);
-        let mut un = n[0] * vx + n[1] * vy + c.gi[0] * w;
-        let mut ut = t[0] * vx + t[1] * vy + c.gi[1] * w;
+        let n = c.n;
+        let s = self.dofs.per_body();
+        let mut dv = [v[s * c.i], v[s * c.i + 1]];
         if c.j != NO_BODY {
-            let (vx, vy, w) = (v[3 * c.j], v[3 * c.j + 1], v[3 * c.j + 2]);
-            un -= n[0] * vx + n[1] * vy + c.gj[0] * w;
-            ut -= t[0] * vx + t[1] * vy + c.gj[1] * w;
+            dv[0] -= v[s * c.j];
+            dv[1] -= v[s * c.j + 1];
+        }
+        let mut un = n[0] * dv[0] + n[1] * dv[1];
+        let mut ut = if self.dofs.friction { -n[1] * dv[0] + n[0] * dv[1] } else { 0.0 };
+        if self.dofs.rotation {
+            let g = &self.levers[a];
+            let wi = v[s * c.i + 2];
+            un += g[0] * wi;
+            if self.dofs.friction {
+                ut += g[1] * wi;
+            }
+            if c.j != NO_BODY {
+                let wj = v[s * c.j + 2];
+                un -= g[2] * wj;
+                if self.dofs.friction {
+                    ut -= g[3] * wj;
+                }
+            }
         }
         [un, ut]
     }
 
-    /// Body velocities `M⁻¹ Bᵀ r`.
+    /// Body velocities `M⁻¹ Bᵀ r` ([`Dofs::per_body`] entries per body).
     pub fn body_velocities(&self, r: &[f64]) -> Vec<f64> {
-        let mut v = vec![0.0; 3 * self.bodies.len()];
+        let mut v = vec![0.0; self.dofs.per_body() * self.bodies.len()];
         for a in 0..self.rows.len() {
             self.scatter_one(a, r[2 * a], r[2 * a + 1], &mut v);
         }
@@ -160,17 +223,34 @@ impl MatrixFree {
         self.contact_velocities(&v, out);
     }
 
+    /// Lever terms `(ρ_i×n, ρ_i×t)` and `(ρ_j×n, ρ_j×t)` of contact `a` (zero without rotation).
+    fn lever_pair(&self, a: usize) -> ([f64; 2], [f64; 2]) {
+        if self.dofs.rotation {
+            let g = self.levers[a];
+            ([g[0], g[1]], [g[2], g[3]])
+        } else {
+            ([0.0; 2], [0.0; 2])
+        }
+    }
+
+    /// Diagonal block `W_aa`. Without friction the tangential row is decoupled (`r_t ≡ 0`); its
+    /// diagonal is set to `W_nn` so that block inverses used by preconditioners stay defined.
     pub fn diag_block(&self, a: usize) -> Mat2 {
         let c = &self.rows[a];
+        let (gi, gj) = self.lever_pair(a);
         let mut w = [0.0; 4];
         let mut add = |b: Body, g: [f64; 2]| {
             w[0] += b.inv_mass + b.inv_inertia * g[0] * g[0];
             w[1] += b.inv_inertia * g[0] * g[1];
             w[3] += b.inv_mass + b.inv_inertia * g[1] * g[1];
         };
-        add(self.bodies[c.i], c.gi);
+        add(self.bodies[c.i], gi);
         if c.j != NO_BODY {
-            add(self.bodies[c.j], c.gj);
+            add(self.bodies[c.j], gj);
+        }
+        if !self.dofs.friction {
+            w[1] = 0.0;
+            w[3] = w[0];
         }
         w[2] = w[1];
         w
@@ -181,9 +261,10 @@ impl MatrixFree {
         let nb = self.bodies.len();
         let mut incident: Vec<Vec<(usize, f64, [f64; 2])>> = vec![Vec::new(); nb];
         for (a, c) in self.rows.iter().enumerate() {
-            incident[c.i].push((a, 1.0, c.gi));
+            let (gi, gj) = self.lever_pair(a);
+            incident[c.i].push((a, 1.0, gi));
             if c.j != NO_BODY {
-                incident[c.j].push((a, -1.0, c.gj));
+                incident[c.j].push((a, -1.0, gj));
             }
         }
         let mut triplets: Vec<(usize, usize, Mat2)> = Vec::new();
@@ -204,9 +285,14 @@ impl MatrixFree {
                         s * (b.inv_mass * dot(ta, nc) + b.inv_inertia * ga[1] * gc[0]),
                         s * (b.inv_mass * dot(ta, tc) + b.inv_inertia * ga[1] * gc[1]),
                     ];
+                    let blk = if self.dofs.friction { blk } else { [blk[0], 0.0, 0.0, 0.0] };
                     triplets.push((a, c, blk));
                 }
             }
+        }
+        if !self.dofs.friction {
+            // The decoupled tangential diagonal, as in `diag_block`.
+            triplets.extend((0..self.rows.len()).map(|a| (a, a, [0.0, 0.0, 0.0, self.diag_block(a)[3]])));
         }
         BlockSparse::from_block_triplets(self.rows.len(), triplets)
     }

@@ -1,0 +1,158 @@
+//! `moreau run SCENE`: simulate a scene file and write its outputs.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{bail, Context, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use super::{resolve_device, DeviceChoice};
+use crate::io::run_output::{RunOutput, RunSummary};
+use crate::io::siconos::{write_fc2d, Storage};
+use crate::scene;
+use crate::solvers::SolverKind;
+use crate::stepping::Simulation;
+
+#[derive(clap::Args)]
+pub struct RunArgs {
+    /// Scene file (TOML).
+    scene: PathBuf,
+    /// Number of steps (default: the scene's).
+    #[arg(long)]
+    steps: Option<usize>,
+    /// Solver of every step (default: the scene's).
+    #[arg(long, value_enum)]
+    solver: Option<SolverKind>,
+    /// Solver tolerance (default: the scene's).
+    #[arg(long)]
+    tol: Option<f64>,
+    #[arg(long)]
+    max_iter: Option<usize>,
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    device: DeviceChoice,
+    /// Output directory (default: out/<scene name>).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Write VTK files every N steps (default: the scene's; 0 = never).
+    #[arg(long)]
+    vtk_every: Option<usize>,
+    /// Step whose PNG picture is written (default: the scene's, else the last step).
+    #[arg(long)]
+    picture_step: Option<usize>,
+    /// Write the contact problem of this step as a Siconos fc2d file (repeatable).
+    #[arg(long)]
+    dump_problem: Vec<usize>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+pub fn run_command(a: RunArgs) -> Result<()> {
+    let device = resolve_device(a.device)?;
+    let mut scene = scene::load(&a.scene)?;
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    if let Some(s) = a.steps {
+        if s == 0 {
+            bail!("--steps must be at least 1");
+        }
+        scene.steps = s;
+    }
+    if let Some(s) = a.solver {
+        scene.settings.solver = s;
+    }
+    if let Some(t) = a.tol {
+        if !(t.is_finite() && t > 0.0) {
+            bail!("--tol {t}: must be finite and > 0");
+        }
+        scene.settings.options.tol = t;
+    }
+    if let Some(m) = a.max_iter {
+        if m == 0 {
+            bail!("--max-iter must be at least 1");
+        }
+        scene.settings.options.max_iter = m;
+    }
+    let vtk_every = a.vtk_every.unwrap_or(if scene.output.vtk { scene.output.every.max(1) } else { 0 });
+    let picture_step = a.picture_step.or(scene.output.picture_step).unwrap_or(scene.steps).min(scene.steps);
+    let out_dir = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.name));
+    let mut output = RunOutput::create(&out_dir)?;
+    let mut summary = RunSummary {
+        scene: scene.name.clone(),
+        device: device.to_string(),
+        solver: scene.settings.solver.name().to_string(),
+        tol: scene.settings.options.tol,
+        effects: scene.world.effects.names().iter().map(|s| s.to_string()).collect(),
+        bodies: scene.world.bodies.len(),
+        ..RunSummary::default()
+    };
+    let steps = scene.steps;
+    let diameter = scene.world.mean_diameter();
+    eprintln!(
+        "{}: {} bodies, {} walls, effects [{}], h = {:e}, {} steps, solver {} tol {:.0e}",
+        scene.name,
+        scene.world.bodies.len(),
+        scene.world.walls.len(),
+        summary.effects.join(", "),
+        scene.settings.h,
+        steps,
+        summary.solver,
+        summary.tol
+    );
+    let mut sim = Simulation::new(scene.world, scene.settings)?;
+    sim.keep_problems(!a.dump_problem.is_empty());
+    let bar = if a.quiet { ProgressBar::hidden() } else { ProgressBar::new(steps as u64) };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} steps {per_sec} {msg} [{elapsed_precise} < {eta}]")
+            .expect("valid progress template"),
+    );
+    bar.enable_steady_tick(Duration::from_millis(500));
+    for _ in 0..steps {
+        let report = sim.step().with_context(|| format!("simulating {}", a.scene.display()))?;
+        output.record(&report)?;
+        summary.add(&report);
+        if !report.converged {
+            bar.suspend(|| {
+                eprintln!(
+                    "warning: step {}: {} did not converge ({}; error {:.2e})",
+                    report.step, summary.solver, report.stop_reason, report.error
+                )
+            });
+        }
+        bar.set_message(format!("{} contacts, {} its, err {:.1e}", report.contacts, report.iterations, report.error));
+        bar.inc(1);
+        if a.dump_problem.contains(&report.step) {
+            let path = output.dir.join(format!("problem_{:06}.dat", report.step));
+            match sim.last_problem() {
+                Some(p) => {
+                    write_fc2d(p, Storage::Sparse, &path)?;
+                    bar.suspend(|| eprintln!("wrote {} ({} contacts)", path.display(), p.n_contacts()));
+                }
+                None => bar.suspend(|| eprintln!("warning: step {} has no contact: no problem to dump", report.step)),
+            }
+        }
+        if vtk_every > 0 && (report.step % vtk_every == 0 || report.step == steps) {
+            output.vtk(&sim)?;
+        }
+        if report.step == picture_step {
+            let path = output.dir.join(format!("state_{:06}.png", report.step));
+            crate::io::picture::write_png(&sim, &path, 1200)?;
+        }
+    }
+    bar.finish_and_clear();
+    summary.max_penetration_per_diameter = if diameter > 0.0 { summary.max_penetration / diameter } else { 0.0 };
+    println!("{}", summary.line());
+    if summary.unconverged_steps > 0 {
+        eprintln!(
+            "warning: {} of {} steps did not reach tol {:.0e} (see {}/steps.csv)",
+            summary.unconverged_steps,
+            summary.steps,
+            summary.tol,
+            out_dir.display()
+        );
+    }
+    output.finish(&summary)?;
+    eprintln!("outputs in {}", out_dir.display());
+    Ok(())
+}

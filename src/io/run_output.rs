@@ -1,0 +1,156 @@
+//! What `moreau run` writes into its output directory: `steps.csv` (one row per step),
+//! `summary.json`, VTK files with their `.pvd` series, PNG pictures, dumped problems.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use serde::Serialize;
+
+use crate::stepping::{Simulation, StepReport};
+
+/// One row of `steps.csv`.
+#[derive(Serialize)]
+struct Row {
+    step: usize,
+    time: f64,
+    contacts: usize,
+    warm_started: usize,
+    iterations: usize,
+    error: f64,
+    converged: bool,
+    max_penetration: f64,
+    kinetic_energy: f64,
+    potential_energy: f64,
+    seconds: f64,
+    detection_seconds: f64,
+    solve_seconds: f64,
+}
+
+/// Totals over a run, written as `summary.json`.
+#[derive(Serialize, Debug, Clone, Default)]
+pub struct RunSummary {
+    pub scene: String,
+    pub device: String,
+    pub solver: String,
+    pub tol: f64,
+    pub effects: Vec<String>,
+    pub bodies: usize,
+    pub steps: usize,
+    pub seconds: f64,
+    pub steps_per_second: f64,
+    pub solve_seconds: f64,
+    pub detection_seconds: f64,
+    pub converged_steps: usize,
+    pub unconverged_steps: usize,
+    pub max_error: f64,
+    pub mean_iterations: f64,
+    pub max_iterations: usize,
+    pub mean_contacts: f64,
+    pub last_contacts: usize,
+    /// Largest overlap over the run, absolute and relative to the mean grain diameter.
+    pub max_penetration: f64,
+    pub max_penetration_per_diameter: f64,
+    pub final_kinetic_energy: f64,
+    pub final_time: f64,
+}
+
+impl RunSummary {
+    pub fn add(&mut self, r: &StepReport) {
+        self.steps += 1;
+        self.seconds += r.seconds;
+        self.solve_seconds += r.solve_seconds;
+        self.detection_seconds += r.detection_seconds;
+        if r.converged {
+            self.converged_steps += 1;
+        } else {
+            self.unconverged_steps += 1;
+        }
+        self.max_error = self.max_error.max(r.error);
+        self.mean_iterations += (r.iterations as f64 - self.mean_iterations) / self.steps as f64;
+        self.max_iterations = self.max_iterations.max(r.iterations);
+        self.mean_contacts += (r.contacts as f64 - self.mean_contacts) / self.steps as f64;
+        self.last_contacts = r.contacts;
+        self.max_penetration = self.max_penetration.max(r.max_penetration);
+        self.final_kinetic_energy = r.kinetic_energy;
+        self.final_time = r.time;
+        self.steps_per_second = self.steps as f64 / self.seconds.max(1e-12);
+    }
+
+    /// One line for the end of a run.
+    pub fn line(&self) -> String {
+        format!(
+            "{}: {} steps in {:.3} s ({:.1} steps/s; solve {:.0} %), device {}, {} tol {:.0e}: {}/{} steps converged (max error {:.2e}), iterations mean {:.1} max {}, contacts mean {:.0}, max penetration {:.2e} of the mean diameter, final kinetic energy {:.3e}",
+            self.scene,
+            self.steps,
+            self.seconds,
+            self.steps_per_second,
+            100.0 * self.solve_seconds / self.seconds.max(1e-12),
+            self.device,
+            self.solver,
+            self.tol,
+            self.converged_steps,
+            self.steps,
+            self.max_error,
+            self.mean_iterations,
+            self.max_iterations,
+            self.mean_contacts,
+            self.max_penetration_per_diameter,
+            self.final_kinetic_energy
+        )
+    }
+}
+
+pub struct RunOutput {
+    pub dir: PathBuf,
+    csv: csv::Writer<File>,
+    grains: Vec<(f64, PathBuf)>,
+    contacts: Vec<(f64, PathBuf)>,
+    walls: Vec<(f64, PathBuf)>,
+}
+
+impl RunOutput {
+    pub fn create(dir: &Path) -> Result<Self> {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let path = dir.join("steps.csv");
+        let csv = csv::Writer::from_path(&path).with_context(|| format!("creating {}", path.display()))?;
+        Ok(Self { dir: dir.to_path_buf(), csv, grains: Vec::new(), contacts: Vec::new(), walls: Vec::new() })
+    }
+
+    pub fn record(&mut self, r: &StepReport) -> Result<()> {
+        self.csv.serialize(Row {
+            step: r.step,
+            time: r.time,
+            contacts: r.contacts,
+            warm_started: r.warm_started,
+            iterations: r.iterations,
+            error: r.error,
+            converged: r.converged,
+            max_penetration: r.max_penetration,
+            kinetic_energy: r.kinetic_energy,
+            potential_energy: r.potential_energy,
+            seconds: r.seconds,
+            detection_seconds: r.detection_seconds,
+            solve_seconds: r.solve_seconds,
+        })?;
+        Ok(())
+    }
+
+    /// VTK files of the current state, added to the `.pvd` series.
+    pub fn vtk(&mut self, sim: &Simulation) -> Result<()> {
+        let [g, c, w] = super::vtk::write_step(sim, &self.dir, sim.steps_done())?;
+        let t = sim.time();
+        self.grains.push((t, g));
+        self.contacts.push((t, c));
+        self.walls.push((t, w));
+        super::vtk::write_pvd(&self.dir.join("grains.pvd"), &self.grains)?;
+        super::vtk::write_pvd(&self.dir.join("contacts.pvd"), &self.contacts)?;
+        super::vtk::write_pvd(&self.dir.join("walls.pvd"), &self.walls)
+    }
+
+    pub fn finish(mut self, summary: &RunSummary) -> Result<()> {
+        self.csv.flush()?;
+        let path = self.dir.join("summary.json");
+        std::fs::write(&path, serde_json::to_string_pretty(summary)?).with_context(|| format!("writing {}", path.display()))
+    }
+}

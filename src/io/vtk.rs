@@ -1,0 +1,143 @@
+//! VTK output for ParaView (vtkio, XML `.vtu`) and `.pvd` time series.
+//! `grains_NNNNNN.vtu`: one vertex per body (glyph it by `radius`), polygons as polygon cells
+//! follow in `shapes`; `contacts_NNNNNN.vtu`: one line per contact (centre to centre, or centre
+//! to contact point for a wall) with the normal and tangential impulses and the status — the
+//! force chains; `walls_NNNNNN.vtu`: the walls as lines.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use vtkio::model::{Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version, VertexNumbers, Vtk};
+
+use crate::detection::Antagonist;
+use crate::problem::cone::ContactStatus;
+use crate::stepping::Simulation;
+use crate::world::{BodyShape, WallShape};
+
+fn grid(title: &str, points: Vec<f64>, connectivity: Vec<u64>, offsets: Vec<u64>, types: Vec<CellType>, data: Attributes) -> Vtk {
+    Vtk {
+        version: Version::default(),
+        title: title.to_string(),
+        byte_order: ByteOrder::LittleEndian,
+        file_path: None,
+        data: DataSet::inline(UnstructuredGridPiece {
+            points: points.into(),
+            cells: Cells { cell_verts: VertexNumbers::XML { connectivity, offsets }, types },
+            data,
+        }),
+    }
+}
+
+fn status_code(s: ContactStatus) -> i32 {
+    match s {
+        ContactStatus::Open => 0,
+        ContactStatus::Stick => 1,
+        ContactStatus::SlidePositive => 2,
+        ContactStatus::SlideNegative => 3,
+    }
+}
+
+/// Writes the three files of one output step into `dir`; returns their names.
+pub fn write_step(sim: &Simulation, dir: &Path, index: usize) -> Result<[PathBuf; 3]> {
+    let world = &sim.world;
+    let b = &world.bodies;
+    let n = b.len();
+
+    // Grains: a vertex cell per body; polygon bodies add a polygon cell over their vertices.
+    let mut points = Vec::with_capacity(3 * n);
+    let (mut conn, mut offs, mut types) = (Vec::new(), Vec::new(), Vec::new());
+    for k in 0..n {
+        points.extend([b.position[k].x, b.position[k].y, 0.0]);
+        conn.push(k as u64);
+        offs.push(conn.len() as u64);
+        types.push(CellType::Vertex);
+    }
+    let mut cell_body: Vec<i64> = (0..n as i64).collect();
+    for k in 0..n {
+        if let BodyShape::Polygon(_) = b.shape[k] {
+            for p in b.world_vertices(k) {
+                conn.push((points.len() / 3) as u64);
+                points.extend([p.x, p.y, 0.0]);
+            }
+            offs.push(conn.len() as u64);
+            types.push(CellType::Polygon);
+            cell_body.push(k as i64);
+        }
+    }
+    let extra = points.len() / 3 - n;
+    let pad = |mut v: Vec<f64>, per: usize| {
+        v.extend(std::iter::repeat(0.0).take(extra * per));
+        v
+    };
+    let velocity: Vec<f64> = (0..n).flat_map(|k| [b.velocity[k].x, b.velocity[k].y, 0.0]).collect();
+    let data = Attributes {
+        point: vec![
+            Attribute::vectors("velocity").with_data(pad(velocity, 3)),
+            Attribute::scalars("spin", 1).with_data(pad((0..n).map(|k| b.spin_of(k)).collect(), 1)),
+            Attribute::scalars("radius", 1).with_data(pad((0..n).map(|k| b.radius_of(k)).collect(), 1)),
+            Attribute::scalars("tag", 1).with_data(pad((0..n).map(|k| b.tag[k] as f64).collect(), 1)),
+        ],
+        cell: vec![Attribute::scalars("body", 1).with_data(cell_body)],
+    };
+    let grains = dir.join(format!("grains_{index:06}.vtu"));
+    grid("moreau grains", points, conn, offs, types, data).export(&grains).with_context(|| format!("writing {}", grains.display()))?;
+
+    // Contacts: a line per contact.
+    let contacts = sim.contacts();
+    let mut points = Vec::with_capacity(6 * contacts.len());
+    let (mut conn, mut offs) = (Vec::new(), Vec::new());
+    for c in contacts {
+        let a = b.position[c.contact.i];
+        let z = match c.contact.other {
+            Antagonist::Body(j) => b.position[j],
+            Antagonist::Wall(_) => c.contact.point,
+        };
+        conn.extend([(points.len() / 3) as u64, (points.len() / 3 + 1) as u64]);
+        points.extend([a.x, a.y, 0.0, z.x, z.y, 0.0]);
+        offs.push(conn.len() as u64);
+    }
+    let data = Attributes {
+        point: vec![],
+        cell: vec![
+            Attribute::scalars("normal_impulse", 1).with_data(contacts.iter().map(|c| c.impulse[0]).collect::<Vec<f64>>()),
+            Attribute::scalars("tangential_impulse", 1).with_data(contacts.iter().map(|c| c.impulse[1]).collect::<Vec<f64>>()),
+            Attribute::scalars("gap", 1).with_data(contacts.iter().map(|c| c.contact.gap).collect::<Vec<f64>>()),
+            Attribute::scalars("status", 1).with_data(contacts.iter().map(|c| status_code(c.status)).collect::<Vec<i32>>()),
+        ],
+    };
+    let types = vec![CellType::Line; contacts.len()];
+    let contacts_path = dir.join(format!("contacts_{index:06}.vtu"));
+    grid("moreau contacts", points, conn, offs, types, data)
+        .export(&contacts_path)
+        .with_context(|| format!("writing {}", contacts_path.display()))?;
+
+    // Walls.
+    let mut points = Vec::new();
+    let (mut conn, mut offs, mut types) = (Vec::new(), Vec::new(), Vec::new());
+    for w in &world.walls {
+        let pts = w.world_points();
+        for p in &pts {
+            conn.push((points.len() / 3) as u64);
+            points.extend([p.x, p.y, 0.0]);
+        }
+        offs.push(conn.len() as u64);
+        types.push(match w.shape {
+            WallShape::Segment { .. } => CellType::Line,
+            WallShape::Polygon(_) => CellType::Polygon,
+        });
+    }
+    let walls = dir.join(format!("walls_{index:06}.vtu"));
+    grid("moreau walls", points, conn, offs, types, Attributes::new()).export(&walls).with_context(|| format!("writing {}", walls.display()))?;
+    Ok([grains, contacts_path, walls])
+}
+
+/// A ParaView collection (`.pvd`) of (time, file) pairs.
+pub fn write_pvd(path: &Path, entries: &[(f64, PathBuf)]) -> Result<()> {
+    let mut s = String::from("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n");
+    for (t, f) in entries {
+        let name = f.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        s.push_str(&format!("    <DataSet timestep=\"{t:.9e}\" part=\"0\" file=\"{name}\"/>\n"));
+    }
+    s.push_str("  </Collection>\n</VTKFile>\n");
+    std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
+}

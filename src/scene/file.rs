@@ -1,0 +1,566 @@
+//! The TOML schema of a scene and its translation into a [`World`]. Every table rejects unknown
+//! keys, so a typo is an error naming the line instead of a silently ignored setting.
+
+use std::path::Path;
+
+use clap::ValueEnum;
+use glam::DVec2;
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::{deposition, generate, line_of, OutputSettings, Scene, SceneError};
+use crate::solvers::{Ordering, SolverKind, SolverOptions};
+use crate::stepping::StepSettings;
+use crate::world::{BodySpec, Effect, Effects, Interaction, Materials, PolygonShape, Wall, WallShape, World};
+
+type P = [f64; 2];
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    name: Option<String>,
+    description: Option<String>,
+    #[serde(default)]
+    effects: Vec<Spanned<Effect>>,
+    gravity: Option<Spanned<P>>,
+    time: Spanned<TimeSpec>,
+    solver: Option<Spanned<SolverSpec>>,
+    detection: Option<Spanned<DetectionSpec>>,
+    output: Option<Spanned<OutputSpec>>,
+    /// Contact law of every pair of materials not listed in `interaction`.
+    contact: Option<Spanned<LawSpec>>,
+    #[serde(default)]
+    material: Vec<Spanned<MaterialSpec>>,
+    #[serde(default)]
+    interaction: Vec<Spanned<PairSpec>>,
+    #[serde(default)]
+    wall: Vec<Spanned<WallSpec>>,
+    #[serde(default)]
+    body: Vec<Spanned<BodyFileSpec>>,
+    #[serde(default)]
+    generate: Vec<Spanned<GenerateSpec>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TimeSpec {
+    step: f64,
+    steps: usize,
+    theta: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SolverSpec {
+    name: Option<String>,
+    tol: Option<f64>,
+    max_iter: Option<usize>,
+    ordering: Option<String>,
+    omega: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DetectionSpec {
+    /// Absolute alert distance; default 5 % of the smallest grain radius.
+    alert: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OutputSpec {
+    every: Option<usize>,
+    vtk: Option<bool>,
+    picture_step: Option<usize>,
+}
+
+#[derive(Deserialize, Default, Clone, Copy)]
+#[serde(deny_unknown_fields)]
+struct LawSpec {
+    friction: Option<f64>,
+    restitution: Option<f64>,
+    cohesion: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialSpec {
+    name: String,
+    density: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PairSpec {
+    materials: [String; 2],
+    friction: Option<f64>,
+    restitution: Option<f64>,
+    cohesion: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BoxSpec {
+    min: P,
+    max: P,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DrumSpec {
+    center: P,
+    radius: f64,
+    sides: usize,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct WallSpec {
+    segment: Option<[P; 2]>,
+    /// A solid box (a fixed convex polygon).
+    #[serde(rename = "box")]
+    solid_box: Option<BoxSpec>,
+    /// An open container: left, bottom and right segments of the box.
+    container: Option<BoxSpec>,
+    polygon: Option<Vec<P>>,
+    /// A ring of `sides` segments (the inside of a drum).
+    drum: Option<DrumSpec>,
+    material: Option<String>,
+    velocity: Option<P>,
+    angular_velocity: Option<f64>,
+    /// Centre of rotation (default: the shape's centre).
+    center: Option<P>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DiskSpec {
+    center: P,
+    radius: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PolygonSpec {
+    center: P,
+    /// Vertices relative to the centre.
+    vertices: Vec<P>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RegularSpec {
+    center: P,
+    radius: f64,
+    sides: usize,
+    angle: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BodyFileSpec {
+    disk: Option<DiskSpec>,
+    polygon: Option<PolygonSpec>,
+    regular: Option<RegularSpec>,
+    material: Option<String>,
+    velocity: Option<P>,
+    spin: Option<f64>,
+    angle: Option<f64>,
+    fixed: Option<bool>,
+    tag: Option<u32>,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+enum GenerateKind {
+    /// Grains on a square lattice filling the region from the bottom.
+    Grid,
+    /// Geometric deposition: a dense packing already in contact (disks only).
+    Deposition,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GenerateSpec {
+    kind: GenerateKind,
+    count: usize,
+    /// `[r_min, r_max]`, radii uniform in between (for polygons: circumradius).
+    radius: P,
+    region: BoxSpec,
+    /// Polygon grains with this many sides (default: disks).
+    sides: Option<usize>,
+    material: Option<String>,
+    /// Materials given to successive layers (with `layers`).
+    materials: Option<Vec<String>>,
+    /// Split the grains, in generation order (bottom to top), into this many tagged layers.
+    layers: Option<usize>,
+    /// Extra room between grid neighbours (default 2 % of r_max).
+    spacing: Option<f64>,
+    velocity: Option<P>,
+    seed: Option<u64>,
+}
+
+struct Ctx<'a> {
+    text: &'a str,
+    origin: &'a Path,
+}
+
+impl Ctx<'_> {
+    fn err<T>(&self, span: std::ops::Range<usize>, field: impl Into<String>, message: impl Into<String>) -> Result<T, SceneError> {
+        Err(SceneError::Invalid {
+            path: self.origin.to_path_buf(),
+            line: line_of(self.text, span.start),
+            field: field.into(),
+            message: message.into(),
+        })
+    }
+}
+
+fn v(p: P) -> DVec2 {
+    DVec2::new(p[0], p[1])
+}
+
+fn finite(p: &[f64]) -> bool {
+    p.iter().all(|x| x.is_finite())
+}
+
+fn check_law(law: &LawSpec) -> Result<Interaction, String> {
+    let get = |x: Option<f64>, name: &str| -> Result<f64, String> {
+        let x = x.unwrap_or(0.0);
+        if !(x.is_finite() && x >= 0.0) {
+            return Err(format!("{name} {x} must be finite and >= 0"));
+        }
+        Ok(x)
+    };
+    let restitution = get(law.restitution, "restitution")?;
+    if restitution > 1.0 {
+        return Err(format!("restitution {restitution} must be <= 1"));
+    }
+    Ok(Interaction { friction: get(law.friction, "friction")?, restitution, cohesion: get(law.cohesion, "cohesion")? })
+}
+
+pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
+    let file: SceneFile = toml::from_str(text).map_err(|e| SceneError::Syntax {
+        path: origin.to_path_buf(),
+        line: e.span().map(|s| line_of(text, s.start)).unwrap_or(0),
+        message: e.message().trim().to_string(),
+    })?;
+    let cx = Ctx { text, origin };
+    let mut warnings = Vec::new();
+
+    // Effects.
+    let mut effects = Effects::default();
+    for e in &file.effects {
+        match *e.get_ref() {
+            Effect::Gravity => effects.gravity = Some(DVec2::new(0.0, -9.81)),
+            Effect::Friction => effects.friction = true,
+            Effect::Rotation => effects.rotation = true,
+            Effect::Restitution => effects.restitution = true,
+            Effect::Cohesion => effects.cohesion = true,
+            Effect::MovingWalls => effects.moving_walls = true,
+            Effect::RollingResistance => {
+                return cx.err(e.span(), "effects", "rolling_resistance is not implemented yet in moreau")
+            }
+        }
+    }
+    if let Some(g) = &file.gravity {
+        if !finite(g.get_ref()) {
+            return cx.err(g.span(), "gravity", "must be finite");
+        }
+        if effects.gravity.is_some() {
+            effects.gravity = Some(v(*g.get_ref()));
+        } else {
+            warnings.push("`gravity` is given but the effect `gravity` is not named: gravity is off".into());
+        }
+    }
+
+    // Materials and interactions.
+    if file.material.is_empty() {
+        return cx.err(0..0, "material", "a scene needs at least one [[material]] (name, density)");
+    }
+    let mut names = Vec::new();
+    let mut density = Vec::new();
+    for (k, m) in file.material.iter().enumerate() {
+        let spec = m.get_ref();
+        if names.contains(&spec.name) {
+            return cx.err(m.span(), format!("material[{k}].name"), format!("material {:?} is defined twice", spec.name));
+        }
+        if !(spec.density.is_finite() && spec.density > 0.0) {
+            return cx.err(m.span(), format!("material[{k}].density"), format!("{} must be finite and > 0", spec.density));
+        }
+        names.push(spec.name.clone());
+        density.push(spec.density);
+    }
+    let default_law = match &file.contact {
+        Some(c) => check_law(c.get_ref()).or_else(|m| cx.err(c.span(), "contact", m))?,
+        None => Interaction::default(),
+    };
+    let mut materials = Materials::new(names, density, default_law);
+    let material_index = |name: &Option<String>, span: std::ops::Range<usize>, field: String| -> Result<usize, SceneError> {
+        match name {
+            None => Ok(0),
+            Some(n) => match materials_names(&file).iter().position(|m| m == n) {
+                Some(k) => Ok(k),
+                None => cx.err(span, field, format!("unknown material {n:?}")),
+            },
+        }
+    };
+    for (k, p) in file.interaction.iter().enumerate() {
+        let spec = p.get_ref();
+        let law = check_law(&LawSpec { friction: spec.friction, restitution: spec.restitution, cohesion: spec.cohesion })
+            .or_else(|m| cx.err(p.span(), format!("interaction[{k}]"), m))?;
+        let a = material_index(&Some(spec.materials[0].clone()), p.span(), format!("interaction[{k}].materials"))?;
+        let b = material_index(&Some(spec.materials[1].clone()), p.span(), format!("interaction[{k}].materials"))?;
+        materials.set(a, b, law);
+    }
+    for (on, name, max) in [
+        (effects.friction, "friction", materials.max_friction()),
+        (effects.restitution, "restitution", materials.max_restitution()),
+        (effects.cohesion, "cohesion", materials.max_cohesion()),
+    ] {
+        if !on && max > 0.0 {
+            warnings.push(format!("{name} coefficients are given but the effect `{name}` is not named: {name} is off"));
+        }
+        if on && max == 0.0 {
+            warnings.push(format!("the effect `{name}` is named but every {name} coefficient is 0"));
+        }
+    }
+
+    let mut world = World::new(effects, materials);
+
+    // Walls.
+    for (k, w) in file.wall.iter().enumerate() {
+        let spec = w.get_ref();
+        let field = |f: &str| format!("wall[{k}].{f}");
+        let material = material_index(&spec.material, w.span(), field("material"))?;
+        let velocity = spec.velocity.map(v).unwrap_or(DVec2::ZERO);
+        let spin = spec.angular_velocity.unwrap_or(0.0);
+        if !velocity.is_finite() || !spin.is_finite() {
+            return cx.err(w.span(), field("velocity"), "must be finite");
+        }
+        if (velocity != DVec2::ZERO || spin != 0.0) && !effects.moving_walls {
+            return cx.err(w.span(), field("velocity"), "a moving wall needs the effect `moving_walls` in `effects`");
+        }
+        let shapes = [spec.segment.is_some(), spec.solid_box.is_some(), spec.container.is_some(), spec.polygon.is_some(), spec.drum.is_some()];
+        if shapes.iter().filter(|&&s| s).count() != 1 {
+            return cx.err(w.span(), format!("wall[{k}]"), "give exactly one of segment, box, container, polygon, drum");
+        }
+        // Every wall is built as (local shapes around a centre).
+        let mut parts: Vec<(WallShape, DVec2)> = Vec::new();
+        let segment_part = |a: DVec2, b: DVec2, c: DVec2| (WallShape::Segment { a: a - c, b: b - c }, c);
+        if let Some([a, b]) = spec.segment {
+            if !finite(&[a[0], a[1], b[0], b[1]]) || v(a) == v(b) {
+                return cx.err(w.span(), field("segment"), "endpoints must be finite and distinct");
+            }
+            let c = spec.center.map(v).unwrap_or((v(a) + v(b)) / 2.0);
+            parts.push(segment_part(v(a), v(b), c));
+        }
+        let check_box = |b: &BoxSpec, f: &str| -> Result<(DVec2, DVec2), SceneError> {
+            if !finite(&[b.min[0], b.min[1], b.max[0], b.max[1]]) || b.min[0] >= b.max[0] || b.min[1] >= b.max[1] {
+                return cx.err(w.span(), field(f), "needs finite min < max");
+            }
+            Ok((v(b.min), v(b.max)))
+        };
+        let mut polygon_vertices: Option<Vec<DVec2>> = None;
+        if let Some(b) = &spec.solid_box {
+            let (lo, hi) = check_box(b, "box")?;
+            polygon_vertices = Some(vec![lo, DVec2::new(hi.x, lo.y), hi, DVec2::new(lo.x, hi.y)]);
+        }
+        if let Some(p) = &spec.polygon {
+            polygon_vertices = Some(p.iter().map(|x| v(*x)).collect());
+        }
+        if let Some(vertices) = polygon_vertices {
+            let mut tmp = crate::world::Bodies::new(true);
+            let centroid_guess = vertices.iter().copied().sum::<DVec2>() / vertices.len().max(1) as f64;
+            let rel: Vec<DVec2> = vertices.iter().map(|p| *p - centroid_guess).collect();
+            tmp.add(&BodySpec::polygon(centroid_guess, rel, 0), 1.0).or_else(|m| cx.err(w.span(), field("polygon"), m))?;
+            let centroid = tmp.position[0];
+            let c = spec.center.map(v).unwrap_or(centroid);
+            let shape = tmp.polygons.remove(0);
+            let local: Vec<DVec2> = shape.vertices.iter().map(|p| *p + centroid - c).collect();
+            let pts: Vec<_> = local.iter().map(|p| parry2d::math::Vector::new(p.x as f32, p.y as f32)).collect();
+            let parry = parry2d::shape::ConvexPolygon::from_convex_polyline(pts)
+                .ok_or(())
+                .or_else(|_| cx.err(w.span(), field("polygon"), "degenerate polygon"))?;
+            parts.push((WallShape::Polygon(PolygonShape { vertices: local, parry }), c));
+        }
+        if let Some(b) = &spec.container {
+            let (lo, hi) = check_box(b, "container")?;
+            let c = spec.center.map(v).unwrap_or((lo + hi) / 2.0);
+            let (bl, br, tl, tr) = (lo, DVec2::new(hi.x, lo.y), DVec2::new(lo.x, hi.y), hi);
+            parts.push(segment_part(tl, bl, c));
+            parts.push(segment_part(bl, br, c));
+            parts.push(segment_part(br, tr, c));
+        }
+        if let Some(d) = &spec.drum {
+            if !(finite(&d.center) && d.radius.is_finite() && d.radius > 0.0 && d.sides >= 3) {
+                return cx.err(w.span(), field("drum"), "needs a finite centre, radius > 0 and sides >= 3");
+            }
+            let c = spec.center.map(v).unwrap_or(v(d.center));
+            let at = |k: usize| v(d.center) + d.radius * DVec2::from_angle(std::f64::consts::TAU * k as f64 / d.sides as f64);
+            for s in 0..d.sides {
+                parts.push(segment_part(at(s), at(s + 1), c));
+            }
+        }
+        for (shape, center) in parts {
+            world.walls.push(Wall { shape, center, angle: 0.0, velocity, spin, material });
+        }
+    }
+
+    // Bodies.
+    for (k, b) in file.body.iter().enumerate() {
+        let spec = b.get_ref();
+        let field = |f: &str| format!("body[{k}].{f}");
+        let material = material_index(&spec.material, b.span(), field("material"))?;
+        let mut body = match (&spec.disk, &spec.polygon, &spec.regular) {
+            (Some(d), None, None) => BodySpec::disk(v(d.center), d.radius, material),
+            (None, Some(p), None) => BodySpec::polygon(v(p.center), p.vertices.iter().map(|x| v(*x)).collect(), material),
+            (None, None, Some(r)) => {
+                if r.sides < 3 {
+                    return cx.err(b.span(), field("regular.sides"), format!("{} sides: a polygon needs at least 3", r.sides));
+                }
+                BodySpec::regular_polygon(v(r.center), r.radius, r.sides, 0.0, material)
+            }
+            _ => return cx.err(b.span(), format!("body[{k}]"), "give exactly one of disk, polygon, regular"),
+        };
+        body.velocity = spec.velocity.map(v).unwrap_or(DVec2::ZERO);
+        body.spin = spec.spin.unwrap_or(0.0);
+        body.angle = spec.angle.or(spec.regular.as_ref().and_then(|r| r.angle)).unwrap_or(0.0);
+        body.fixed = spec.fixed.unwrap_or(false);
+        body.tag = spec.tag.unwrap_or(0);
+        if body.spin != 0.0 && !effects.rotation {
+            warnings.push(format!("body[{k}] has a spin but the effect `rotation` is not named: it is ignored"));
+        }
+        let density = world.materials.density[material];
+        world.bodies.add(&body, density).or_else(|m| cx.err(b.span(), format!("body[{k}]"), m))?;
+    }
+
+    // Generators.
+    let mut smallest_radius = f64::INFINITY;
+    for k in 0..world.bodies.len() {
+        smallest_radius = smallest_radius.min(world.bodies.radius_of(k));
+    }
+    for (k, g) in file.generate.iter().enumerate() {
+        let spec = g.get_ref();
+        let field = |f: &str| format!("generate[{k}].{f}");
+        let [r_min, r_max] = spec.radius;
+        if !(r_min.is_finite() && r_max.is_finite() && r_min > 0.0 && r_min <= r_max) {
+            return cx.err(g.span(), field("radius"), format!("[{r_min}, {r_max}] must satisfy 0 < r_min <= r_max"));
+        }
+        let (lo, hi) = (v(spec.region.min), v(spec.region.max));
+        if !(lo.is_finite() && hi.is_finite() && lo.x < hi.x && lo.y < hi.y) {
+            return cx.err(g.span(), field("region"), "needs finite min < max");
+        }
+        if spec.count == 0 {
+            return cx.err(g.span(), field("count"), "must be >= 1");
+        }
+        let layer_materials: Vec<usize> = match (&spec.materials, &spec.material) {
+            (Some(list), _) if !list.is_empty() => list
+                .iter()
+                .map(|n| material_index(&Some(n.clone()), g.span(), field("materials")))
+                .collect::<Result<_, _>>()?,
+            (_, m) => vec![material_index(m, g.span(), field("material"))?],
+        };
+        let layers = spec.layers.unwrap_or(1).max(1);
+        let seed = spec.seed.unwrap_or(k as u64);
+        let (centers, radii) = match spec.kind {
+            GenerateKind::Grid => {
+                let spacing = spec.spacing.unwrap_or(0.02 * r_max);
+                generate::grid_fill(lo, hi, spec.count, r_min, r_max, spacing, seed).or_else(|m| cx.err(g.span(), field("count"), m))?
+            }
+            GenerateKind::Deposition => {
+                if spec.sides.is_some() {
+                    return cx.err(g.span(), field("sides"), "deposition generates disks only; use kind = \"grid\" for polygons");
+                }
+                if hi.x - lo.x < 2.0 * r_max {
+                    return cx.err(g.span(), field("region"), "narrower than one grain");
+                }
+                let (c, r) = deposition::deposit_disks(lo.x, hi.x, lo.y, spec.count, r_min, r_max, seed);
+                if let Some(top) = c.iter().zip(&r).map(|(c, r)| c.y + r).reduce(f64::max) {
+                    if top > hi.y {
+                        return cx.err(g.span(), field("region"), format!("{} grains pile up to y = {top:.4}, above the region's top {}", spec.count, hi.y));
+                    }
+                }
+                (c, r)
+            }
+        };
+        let velocity = spec.velocity.map(v).unwrap_or(DVec2::ZERO);
+        let mut rng_angle = rand::rngs::SmallRng::seed_from_u64(seed ^ 0x9e37_79b9);
+        for (n, (c, r)) in centers.iter().zip(&radii).enumerate() {
+            let layer = n * layers / centers.len();
+            let material = layer_materials[layer % layer_materials.len()];
+            let mut body = match spec.sides {
+                None => BodySpec::disk(*c, *r, material),
+                Some(s) if s >= 3 => {
+                    use rand::Rng;
+                    let angle = rng_angle.gen_range(0.0..std::f64::consts::TAU);
+                    BodySpec::regular_polygon(*c, *r, s, angle, material)
+                }
+                Some(s) => return cx.err(g.span(), field("sides"), format!("{s} sides: a polygon needs at least 3")),
+            };
+            body.velocity = velocity;
+            body.tag = layer as u32;
+            let density = world.materials.density[material];
+            world.bodies.add(&body, density).or_else(|m| cx.err(g.span(), format!("generate[{k}]"), m))?;
+            smallest_radius = smallest_radius.min(*r);
+        }
+    }
+    if world.bodies.is_empty() {
+        return cx.err(0..0, "body", "the scene has no bodies (add [[body]] or [[generate]])");
+    }
+
+    // Time, solver, detection, output.
+    let time = file.time.get_ref();
+    let solver = file.solver.as_ref().map(|s| s.get_ref());
+    let solver_span = file.solver.as_ref().map(|s| s.span()).unwrap_or(0..0);
+    let kind = match solver.and_then(|s| s.name.as_deref()) {
+        None => SolverKind::Nlgs,
+        Some(n) => SolverKind::from_str(n, true).or_else(|_| {
+            let known: Vec<_> = SolverKind::ALL.iter().map(|k| k.name()).collect();
+            cx.err(solver_span.clone(), "solver.name", format!("unknown solver {n:?} (one of {})", known.join(", ")))
+        })?,
+    };
+    let mut options = SolverOptions { tol: 1e-4, max_iter: 10_000, ..SolverOptions::default() };
+    if let Some(s) = solver {
+        options.tol = s.tol.unwrap_or(options.tol);
+        options.max_iter = s.max_iter.unwrap_or(options.max_iter);
+        options.omega = s.omega.unwrap_or(1.0);
+        if let Some(o) = &s.ordering {
+            options.ordering = Ordering::from_str(o, true)
+                .or_else(|_| cx.err(solver_span.clone(), "solver.ordering", format!("unknown ordering {o:?}")))?;
+        }
+    }
+    let alert = match file.detection.as_ref().and_then(|d| d.get_ref().alert) {
+        Some(a) => a,
+        None => 0.05 * smallest_radius,
+    };
+    let settings = StepSettings { h: time.step, theta: time.theta.unwrap_or(0.5), alert, solver: kind, options };
+    if let Err(m) = settings.validate() {
+        let span = if m.contains("alert") { file.detection.as_ref().map(|d| d.span()) } else { None };
+        return cx.err(span.unwrap_or_else(|| file.time.span()), "time/solver/detection", m);
+    }
+    if time.steps == 0 {
+        return cx.err(file.time.span(), "time.steps", "must be >= 1");
+    }
+    let output = file.output.as_ref().map(|o| o.get_ref());
+    let output = OutputSettings {
+        every: output.and_then(|o| o.every).unwrap_or(0),
+        vtk: output.and_then(|o| o.vtk).unwrap_or(false),
+        picture_step: output.and_then(|o| o.picture_step),
+    };
+    Ok(Scene {
+        name: file.name.clone().unwrap_or_else(|| origin.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()),
+        description: file.description.clone().unwrap_or_default(),
+        world,
+        settings,
+        steps: time.steps,
+        output,
+        warnings,
+    })
+}
+
+fn materials_names(file: &SceneFile) -> Vec<String> {
+    file.material.iter().map(|m| m.get_ref().name.clone()).collect()
+}
+
+use rand::SeedableRng;

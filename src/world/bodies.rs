@@ -1,0 +1,275 @@
+//! Rigid bodies as flat arrays. Angles, spins and inertias exist only when rotation is on.
+
+use glam::DVec2;
+use parry2d::shape::ConvexPolygon;
+
+/// A convex polygon in its body frame (centroid at the origin, counter-clockwise), with the
+/// f32 parry2d copy used by the narrow phase.
+#[derive(Clone, Debug)]
+pub struct PolygonShape {
+    pub vertices: Vec<DVec2>,
+    pub parry: ConvexPolygon,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum BodyShape {
+    Disk { radius: f64 },
+    /// Index into [`Bodies::polygons`].
+    Polygon(u32),
+}
+
+/// What a host code or a scene gives to create a body.
+#[derive(Clone, Debug)]
+pub struct BodySpec {
+    pub shape: SpecShape,
+    pub center: DVec2,
+    pub angle: f64,
+    pub velocity: DVec2,
+    pub spin: f64,
+    pub material: usize,
+    /// A fixed body never moves (infinite mass).
+    pub fixed: bool,
+    /// A free label carried to the outputs (layer number, group…).
+    pub tag: u32,
+}
+
+#[derive(Clone, Debug)]
+pub enum SpecShape {
+    Disk { radius: f64 },
+    /// Vertices relative to `center`, any order (their convex hull is used).
+    Polygon { vertices: Vec<DVec2> },
+}
+
+impl BodySpec {
+    pub fn disk(center: DVec2, radius: f64, material: usize) -> Self {
+        Self {
+            shape: SpecShape::Disk { radius },
+            center,
+            angle: 0.0,
+            velocity: DVec2::ZERO,
+            spin: 0.0,
+            material,
+            fixed: false,
+            tag: 0,
+        }
+    }
+
+    pub fn polygon(center: DVec2, vertices: Vec<DVec2>, material: usize) -> Self {
+        Self { shape: SpecShape::Polygon { vertices }, ..Self::disk(center, 0.0, material) }
+    }
+
+    /// A regular polygon with `sides` vertices on a circle of `radius`.
+    pub fn regular_polygon(center: DVec2, radius: f64, sides: usize, angle: f64, material: usize) -> Self {
+        let vertices = (0..sides)
+            .map(|k| {
+                let a = angle + std::f64::consts::TAU * k as f64 / sides as f64;
+                DVec2::new(a.cos(), a.sin()) * radius
+            })
+            .collect();
+        Self::polygon(center, vertices, material)
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Bodies {
+    rotation: bool,
+    pub shape: Vec<BodyShape>,
+    pub polygons: Vec<PolygonShape>,
+    pub position: Vec<DVec2>,
+    pub velocity: Vec<DVec2>,
+    /// Empty without rotation.
+    pub angle: Vec<f64>,
+    /// Empty without rotation.
+    pub spin: Vec<f64>,
+    /// 0 for fixed bodies.
+    pub mass: Vec<f64>,
+    pub inv_mass: Vec<f64>,
+    /// Empty without rotation.
+    pub inertia: Vec<f64>,
+    /// Empty without rotation.
+    pub inv_inertia: Vec<f64>,
+    pub bounding_radius: Vec<f64>,
+    pub material: Vec<u16>,
+    pub tag: Vec<u32>,
+}
+
+/// Area, centroid and polar moment of area about the centroid of a counter-clockwise polygon.
+fn polygon_area_properties(v: &[DVec2]) -> (f64, DVec2, f64) {
+    let (mut area, mut c, mut j_origin) = (0.0, DVec2::ZERO, 0.0);
+    for k in 0..v.len() {
+        let (a, b) = (v[k], v[(k + 1) % v.len()]);
+        let cr = a.perp_dot(b);
+        area += cr / 2.0;
+        c += (a + b) * cr / 6.0;
+        j_origin += cr * (a.dot(a) + a.dot(b) + b.dot(b)) / 12.0;
+    }
+    let centroid = c / area;
+    (area, centroid, j_origin - area * centroid.length_squared())
+}
+
+impl Bodies {
+    pub fn new(rotation: bool) -> Self {
+        Self {
+            rotation,
+            shape: Vec::new(),
+            polygons: Vec::new(),
+            position: Vec::new(),
+            velocity: Vec::new(),
+            angle: Vec::new(),
+            spin: Vec::new(),
+            mass: Vec::new(),
+            inv_mass: Vec::new(),
+            inertia: Vec::new(),
+            inv_inertia: Vec::new(),
+            bounding_radius: Vec::new(),
+            material: Vec::new(),
+            tag: Vec::new(),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.position.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.position.is_empty()
+    }
+
+    pub fn has_rotation(&self) -> bool {
+        self.rotation
+    }
+
+    /// Adds a body of the given density; returns its index or says what is wrong with it.
+    pub fn add(&mut self, spec: &BodySpec, density: f64) -> Result<usize, String> {
+        let finite = |v: DVec2| v.x.is_finite() && v.y.is_finite();
+        if !finite(spec.center) || !finite(spec.velocity) || !spec.angle.is_finite() || !spec.spin.is_finite() {
+            return Err("position, angle, velocity and spin must be finite".into());
+        }
+        if !(density.is_finite() && density > 0.0) {
+            return Err(format!("density {density} must be finite and > 0"));
+        }
+        let (shape, area, second_moment, bounding, center) = match &spec.shape {
+            SpecShape::Disk { radius } => {
+                let r = *radius;
+                if !(r.is_finite() && r > 0.0) {
+                    return Err(format!("disk radius {r} must be finite and > 0"));
+                }
+                let area = std::f64::consts::PI * r * r;
+                (BodyShape::Disk { radius: r }, area, area * r * r / 2.0, r, spec.center)
+            }
+            SpecShape::Polygon { vertices } => {
+                if vertices.len() < 3 || !vertices.iter().all(|&v| finite(v)) {
+                    return Err(format!("a polygon needs at least 3 finite vertices, got {}", vertices.len()));
+                }
+                let pts: Vec<_> = vertices.iter().map(|v| parry2d::math::Vector::new(v.x as f32, v.y as f32)).collect();
+                let hull = ConvexPolygon::from_convex_hull(&pts)
+                    .ok_or_else(|| "degenerate polygon: its vertices have no convex hull of positive area".to_string())?;
+                let ccw: Vec<DVec2> = hull.points().iter().map(|p| DVec2::new(p.x as f64, p.y as f64)).collect();
+                let (area, centroid, polar) = polygon_area_properties(&ccw);
+                let size = ccw.iter().map(|v| (*v - centroid).length()).fold(0.0, f64::max);
+                if area.is_nan() || area <= 1e-12 * size * size || ccw.len() < 3 {
+                    return Err(format!("degenerate polygon: area {area:e} is zero for its size {size:e}"));
+                }
+                let local: Vec<DVec2> = ccw.iter().map(|v| *v - centroid).collect();
+                let pts: Vec<_> = local.iter().map(|v| parry2d::math::Vector::new(v.x as f32, v.y as f32)).collect();
+                let parry = ConvexPolygon::from_convex_polyline(pts)
+                    .ok_or_else(|| "degenerate polygon after centring".to_string())?;
+                self.polygons.push(PolygonShape { vertices: local, parry });
+                let c = spec.center + DVec2::from_angle(spec.angle).rotate(centroid);
+                (BodyShape::Polygon(self.polygons.len() as u32 - 1), area, polar, size, c)
+            }
+        };
+        let (mass, inertia) = if spec.fixed { (0.0, 0.0) } else { (density * area, density * second_moment) };
+        self.shape.push(shape);
+        self.position.push(center);
+        self.velocity.push(if spec.fixed { DVec2::ZERO } else { spec.velocity });
+        self.mass.push(mass);
+        self.inv_mass.push(if spec.fixed { 0.0 } else { 1.0 / mass });
+        if self.rotation {
+            self.angle.push(spec.angle);
+            self.spin.push(if spec.fixed { 0.0 } else { spec.spin });
+            self.inertia.push(inertia);
+            self.inv_inertia.push(if spec.fixed { 0.0 } else { 1.0 / inertia });
+        } else if let BodyShape::Polygon(p) = shape {
+            // Without rotation a polygon keeps its initial orientation: bake it in.
+            let rot = DVec2::from_angle(spec.angle);
+            let poly = &mut self.polygons[p as usize];
+            poly.vertices.iter_mut().for_each(|v| *v = rot.rotate(*v));
+            let pts: Vec<_> = poly.vertices.iter().map(|v| parry2d::math::Vector::new(v.x as f32, v.y as f32)).collect();
+            poly.parry = ConvexPolygon::from_convex_polyline(pts).ok_or("degenerate polygon after rotation")?;
+        }
+        self.bounding_radius.push(bounding);
+        self.material.push(spec.material as u16);
+        self.tag.push(spec.tag);
+        Ok(self.len() - 1)
+    }
+
+    #[inline]
+    pub fn angle_of(&self, k: usize) -> f64 {
+        if self.rotation {
+            self.angle[k]
+        } else {
+            0.0
+        }
+    }
+
+    #[inline]
+    pub fn spin_of(&self, k: usize) -> f64 {
+        if self.rotation {
+            self.spin[k]
+        } else {
+            0.0
+        }
+    }
+
+    /// Disk radius, or the bounding radius of a polygon.
+    pub fn radius_of(&self, k: usize) -> f64 {
+        match self.shape[k] {
+            BodyShape::Disk { radius } => radius,
+            BodyShape::Polygon(_) => self.bounding_radius[k],
+        }
+    }
+
+    /// World coordinates of a polygon body's vertices (empty for a disk).
+    pub fn world_vertices(&self, k: usize) -> Vec<DVec2> {
+        match self.shape[k] {
+            BodyShape::Disk { .. } => Vec::new(),
+            BodyShape::Polygon(p) => {
+                let rot = DVec2::from_angle(self.angle_of(k));
+                self.polygons[p as usize].vertices.iter().map(|v| self.position[k] + rot.rotate(*v)).collect()
+            }
+        }
+    }
+
+    pub fn kinetic_energy(&self) -> f64 {
+        let mut e: f64 = (0..self.len()).map(|k| 0.5 * self.mass[k] * self.velocity[k].length_squared()).sum();
+        if self.rotation {
+            e += (0..self.len()).map(|k| 0.5 * self.inertia[k] * self.spin[k] * self.spin[k]).sum::<f64>();
+        }
+        e
+    }
+
+    pub fn potential_energy(&self, gravity: DVec2) -> f64 {
+        (0..self.len()).map(|k| -self.mass[k] * gravity.dot(self.position[k])).sum()
+    }
+
+    pub fn mean_diameter(&self) -> f64 {
+        let dynamic: Vec<f64> = (0..self.len()).filter(|&k| self.inv_mass[k] > 0.0).map(|k| self.radius_of(k)).collect();
+        if dynamic.is_empty() {
+            return 0.0;
+        }
+        2.0 * dynamic.iter().sum::<f64>() / dynamic.len() as f64
+    }
+
+    /// Bytes held by the body arrays (what an effect that is off saves shows here).
+    pub fn memory_bytes(&self) -> usize {
+        let f = std::mem::size_of::<f64>();
+        let v = std::mem::size_of::<DVec2>();
+        self.shape.capacity() * std::mem::size_of::<BodyShape>()
+            + (self.position.capacity() + self.velocity.capacity()) * v
+            + (self.angle.capacity() + self.spin.capacity() + self.mass.capacity() + self.inv_mass.capacity()) * f
+            + (self.inertia.capacity() + self.inv_inertia.capacity() + self.bounding_radius.capacity()) * f
+            + self.material.capacity() * 2
+            + self.tag.capacity() * 4
+    }
+}

@@ -1,0 +1,59 @@
+//! Materials (density) and the contact law parameters of each pair of materials.
+
+/// Contact law parameters of one pair of materials.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Interaction {
+    pub friction: f64,
+    pub restitution: f64,
+    pub cohesion: f64,
+}
+
+/// Material names, densities and a symmetric table of interactions.
+#[derive(Clone, Debug, Default)]
+pub struct Materials {
+    pub names: Vec<String>,
+    pub density: Vec<f64>,
+    table: Vec<Interaction>,
+}
+
+impl Materials {
+    /// Materials with one default interaction for every pair.
+    pub fn new(names: Vec<String>, density: Vec<f64>, default: Interaction) -> Self {
+        let n = names.len();
+        Self { names, density, table: vec![default; n * n] }
+    }
+
+    pub fn len(&self) -> usize {
+        self.names.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.names.is_empty()
+    }
+
+    pub fn index_of(&self, name: &str) -> Option<usize> {
+        self.names.iter().position(|n| n == name)
+    }
+
+    pub fn set(&mut self, a: usize, b: usize, law: Interaction) {
+        let n = self.len();
+        self.table[a * n + b] = law;
+        self.table[b * n + a] = law;
+    }
+
+    #[inline]
+    pub fn interaction(&self, a: usize, b: usize) -> Interaction {
+        self.table[a * self.len() + b]
+    }
+
+    /// Largest friction coefficient of any pair (to tell whether friction could matter).
+    pub fn max_friction(&self) -> f64 {
+        self.table.iter().map(|l| l.friction).fold(0.0, f64::max)
+    }
+    pub fn max_restitution(&self) -> f64 {
+        self.table.iter().map(|l| l.restitution).fold(0.0, f64::max)
+    }
+    pub fn max_cohesion(&self) -> f64 {
+        self.table.iter().map(|l| l.cohesion).fold(0.0, f64::max)
+    }
+}

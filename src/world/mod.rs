@@ -1,0 +1,65 @@
+//! The simulated system: bodies (disks, convex polygons), walls, materials and the effects a
+//! scene switches on. Stored as flat arrays (structure of arrays): per-body data that an effect
+//! needs (angles and spins for rotation, pair tables for friction…) exists only when it is on.
+
+mod bodies;
+mod effects;
+mod materials;
+mod walls;
+
+pub use bodies::{Bodies, BodyShape, BodySpec, PolygonShape, SpecShape};
+pub use effects::{Effect, Effects};
+pub use materials::{Interaction, Materials};
+pub use walls::{Wall, WallShape};
+
+use glam::DVec2;
+
+/// Everything a time step reads and updates.
+#[derive(Clone, Debug)]
+pub struct World {
+    pub effects: Effects,
+    pub bodies: Bodies,
+    pub walls: Vec<Wall>,
+    pub materials: Materials,
+}
+
+impl World {
+    pub fn new(effects: Effects, materials: Materials) -> Self {
+        Self { bodies: Bodies::new(effects.rotation), walls: Vec::new(), materials, effects }
+    }
+
+    /// Kinetic energy `½ Σ m|v|² + ½ Σ I ω²`.
+    pub fn kinetic_energy(&self) -> f64 {
+        self.bodies.kinetic_energy()
+    }
+
+    /// Potential energy of gravity `−Σ m g·x` (zero without gravity).
+    pub fn potential_energy(&self) -> f64 {
+        match self.effects.gravity {
+            Some(g) => self.bodies.potential_energy(g),
+            None => 0.0,
+        }
+    }
+
+    /// Mean diameter of the dynamic bodies (the length that penetration is measured against).
+    pub fn mean_diameter(&self) -> f64 {
+        self.bodies.mean_diameter()
+    }
+
+    /// Axis-aligned bounds of bodies and walls.
+    pub fn bounds(&self) -> (DVec2, DVec2) {
+        let mut lo = DVec2::splat(f64::INFINITY);
+        let mut hi = DVec2::splat(f64::NEG_INFINITY);
+        for k in 0..self.bodies.len() {
+            let (p, r) = (self.bodies.position[k], self.bodies.bounding_radius[k]);
+            lo = lo.min(p - r);
+            hi = hi.max(p + r);
+        }
+        for w in &self.walls {
+            let (a, b) = w.aabb();
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+        (lo, hi)
+    }
+}
