@@ -275,6 +275,11 @@ fn contacts_are_warm_started_from_the_previous_step() {
     assert!(last.contacts > 50 && last.warm_started * 100 >= 98 * last.contacts, "{} of {} warm-started", last.warm_started, last.contacts);
     // The same problem solved from zero takes several times more iterations.
     let cold = moreau::solve(sim.last_problem().unwrap(), sim.settings.solver, &sim.settings.options, None);
-    assert!(last.converged && cold.converged);
-    assert!(3 * last.iterations <= cold.iterations, "warm {} vs cold {} iterations", last.iterations, cold.iterations);
+    assert!(last.converged, "warm-started step: {} its, error {:e}", last.iterations, last.error);
+    assert!(
+        !cold.converged || 3 * last.iterations <= cold.iterations,
+        "warm {} vs cold {} iterations",
+        last.iterations,
+        cold.iterations
+    );
 }

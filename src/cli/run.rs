@@ -47,6 +47,9 @@ pub struct RunArgs {
     quiet: bool,
 }
 
+/// Non-converged steps reported one by one; the rest are counted in the summary and steps.csv.
+const WARNINGS_SHOWN: usize = 5;
+
 pub fn run_command(a: RunArgs) -> Result<()> {
     let device = resolve_device(a.device)?;
     let mut scene = scene::load(&a.scene)?;
@@ -112,11 +115,15 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         let report = sim.step().with_context(|| format!("simulating {}", a.scene.display()))?;
         output.record(&report)?;
         summary.add(&report);
-        if !report.converged {
+        if !report.converged && summary.unconverged_steps <= WARNINGS_SHOWN {
             bar.suspend(|| {
                 eprintln!(
-                    "warning: step {}: {} did not converge ({}; error {:.2e})",
-                    report.step, summary.solver, report.stop_reason, report.error
+                    "warning: step {}: {} did not converge ({}; error {:.2e}){}",
+                    report.step,
+                    summary.solver,
+                    report.stop_reason,
+                    report.error,
+                    if summary.unconverged_steps == WARNINGS_SHOWN { "; further ones are only counted" } else { "" }
                 )
             });
         }

@@ -4,6 +4,7 @@
 
 pub mod broad_phase;
 pub mod narrow_phase;
+pub mod polygon_clip;
 
 use glam::DVec2;
 
@@ -56,24 +57,41 @@ impl Configuration<'_> {
 pub struct Detector {
     grid: broad_phase::Grid,
     pairs: Vec<(u32, u32)>,
+    radius: Vec<f64>,
 }
 
 impl Detector {
     /// All contacts with a gap below `alert`, sorted by (i, antagonist, feature).
-    pub fn detect(&mut self, bodies: &Bodies, config: &Configuration, walls: &[Wall], alert: f64) -> Vec<DetectedContact> {
-        self.grid.candidate_pairs(config.position, &bodies.bounding_radius, alert, &mut self.pairs);
+    /// `reach[k]` bounds how far body `k` moves within the step (0 for a static snapshot), and
+    /// `wall_reach[w]` how far wall `w` does: a pair is tested when it could come within
+    /// `alert` by the end of the step, so no contact is first seen already overlapping.
+    pub fn detect(
+        &mut self,
+        bodies: &Bodies,
+        config: &Configuration,
+        walls: &[Wall],
+        alert: f64,
+        reach: &[f64],
+        wall_reach: &[f64],
+    ) -> Vec<DetectedContact> {
+        self.radius.clear();
+        self.radius.extend((0..bodies.len()).map(|k| bodies.bounding_radius[k] + reach.get(k).copied().unwrap_or(0.0)));
+        self.grid.candidate_pairs(config.position, &self.radius, alert, &mut self.pairs);
         let mut out = Vec::with_capacity(self.pairs.len() + bodies.len() / 4);
         for &(i, j) in &self.pairs {
-            narrow_phase::body_body(bodies, config, i as usize, j as usize, alert, &mut out);
+            let pair_alert = alert + reach.get(i as usize).copied().unwrap_or(0.0) + reach.get(j as usize).copied().unwrap_or(0.0);
+            narrow_phase::body_body(bodies, config, i as usize, j as usize, pair_alert, &mut out);
         }
-        let rmax = bodies.bounding_radius.iter().copied().fold(0.0, f64::max);
+        let rmax = self.radius.iter().copied().fold(0.0, f64::max);
         for (w, wall) in walls.iter().enumerate() {
+            let wr = wall_reach.get(w).copied().unwrap_or(0.0);
             let (lo, hi) = wall.aabb();
-            let (lo, hi) = (lo - (rmax + alert), hi + (rmax + alert));
+            let (lo, hi) = (lo - (rmax + alert + wr), hi + (rmax + alert + wr));
             for k in 0..bodies.len() {
                 let p = config.position[k];
                 if p.x >= lo.x && p.y >= lo.y && p.x <= hi.x && p.y <= hi.y && bodies.inv_mass[k] > 0.0 {
-                    narrow_phase::body_wall(bodies, config, k, w, wall, alert, &mut out);
+                    let body_alert = alert + wr + reach.get(k).copied().unwrap_or(0.0);
+                    narrow_phase::body_wall(bodies, config, k, w, wall, body_alert, &mut out);
                 }
             }
         }

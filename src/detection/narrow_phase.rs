@@ -1,12 +1,13 @@
-//! Exact narrow phase. Disk–disk and disk–segment are closed-form in f64; every pair with a
-//! polygon goes through parry2d (f32), posed relative to body `i` so that precision depends on
-//! the grains' size, not on their distance from the origin.
+//! Exact narrow phase. Disk–disk and disk–segment are closed-form in f64; disk–polygon goes
+//! through parry2d (f32, posed relative to the disk so precision follows grain size, not the
+//! distance from the origin); polygon–polygon and polygon–segment by SAT and clipping in f64.
 
 use glam::{DVec2, Vec2};
 use parry2d::math::Pose;
-use parry2d::query::{self, details::contact_manifold_pfm_pfm, ContactManifold};
-use parry2d::shape::{Ball, ConvexPolygon, Segment, Shape};
+use parry2d::query;
+use parry2d::shape::{Ball, ConvexPolygon};
 
+use super::polygon_clip::polygon_polygon;
 use super::{Antagonist, Configuration, DetectedContact};
 use crate::world::{Bodies, BodyShape, Wall, WallShape};
 
@@ -34,16 +35,16 @@ pub fn disk_segment(x: DVec2, r: f64, a: DVec2, b: DVec2) -> (f64, DVec2, DVec2)
     (gap, n, c + n * (0.5 * gap))
 }
 
-enum Geometry<'a> {
-    Disk(f64),
-    Polygon(&'a ConvexPolygon),
-    Segment(DVec2, DVec2),
-}
-
-fn body_geometry(bodies: &Bodies, k: usize) -> Geometry<'_> {
-    match bodies.shape[k] {
-        BodyShape::Disk { radius } => Geometry::Disk(radius),
-        BodyShape::Polygon(p) => Geometry::Polygon(&bodies.polygons[p as usize].parry),
+/// Contact of a disk (centre `x`, radius `r`) with a convex polygon posed at `xp`, angle `ap`,
+/// through parry2d, posed relative to the disk so that precision follows grain size.
+/// Returns (point, normal from the polygon to the disk, gap).
+fn disk_polygon(x: DVec2, r: f64, polygon: &ConvexPolygon, xp: DVec2, ap: f64, alert: f64) -> Option<(DVec2, DVec2, f64)> {
+    let pose_disk = Pose::new(Vec2::ZERO, 0.0);
+    let pose_poly = Pose::new(v32(xp - x), ap as f32);
+    let ball = Ball::new(r as f32);
+    match query::contact(&pose_disk, &ball, &pose_poly, polygon, alert as f32) {
+        Ok(Some(c)) => Some((x + 0.5 * (v64(c.point1) + v64(c.point2)), -v64(c.normal1), c.dist as f64)),
+        _ => None,
     }
 }
 
@@ -55,88 +56,45 @@ fn v64(v: Vec2) -> DVec2 {
     DVec2::new(v.x as f64, v.y as f64)
 }
 
-/// Contacts between shape 1 (body `i`, at `x1` with angle `a1`) and shape 2 (at `x2`, angle `a2`)
-/// through parry2d. Every parry query is posed relative to `x1`.
-#[allow(clippy::too_many_arguments)]
-fn parry_contacts(
-    g1: &Geometry,
-    x1: DVec2,
-    a1: f64,
-    g2: &Geometry,
-    x2: DVec2,
-    a2: f64,
-    alert: f64,
-    mut emit: impl FnMut(u64, DVec2, DVec2, f64),
-) {
-    let pose1 = Pose::new(Vec2::ZERO, a1 as f32);
-    let pose2 = Pose::new(v32(x2 - x1), a2 as f32);
-    let segment;
-    let ball1;
-    let ball2;
-    let s1: &dyn Shape = match g1 {
-        Geometry::Disk(r) => {
-            ball1 = Ball::new(*r as f32);
-            &ball1
-        }
-        Geometry::Polygon(p) => *p,
-        Geometry::Segment(..) => unreachable!("shape 1 is always a body"),
-    };
-    let s2: &dyn Shape = match g2 {
-        Geometry::Disk(r) => {
-            ball2 = Ball::new(*r as f32);
-            &ball2
-        }
-        Geometry::Polygon(p) => *p,
-        Geometry::Segment(a, b) => {
-            segment = Segment::new(v32(*a), v32(*b));
-            &segment
-        }
-    };
-    let both_polygonal = !matches!(g1, Geometry::Disk(_)) && !matches!(g2, Geometry::Disk(_));
-    if both_polygonal {
-        let pos12 = pose1.inv_mul(&pose2);
-        let mut manifold: ContactManifold<(), ()> = ContactManifold::new();
-        match (g1, g2) {
-            (Geometry::Polygon(p1), Geometry::Polygon(p2)) => {
-                contact_manifold_pfm_pfm(&pos12, *p1, 0.0, None, *p2, 0.0, None, alert as f32, &mut manifold)
-            }
-            (Geometry::Polygon(p1), Geometry::Segment(a, b)) => {
-                let seg = Segment::new(v32(*a), v32(*b));
-                contact_manifold_pfm_pfm(&pos12, *p1, 0.0, None, &seg, 0.0, None, alert as f32, &mut manifold)
-            }
-            _ => return,
-        }
-        let n_world = -v64(pose1.rotation * manifold.local_n1);
-        for c in &manifold.points {
-            let p1 = x1 + v64(pose1 * c.local_p1);
-            let p2 = x1 + v64(pose2 * c.local_p2);
-            let feature = ((c.fid1.0 as u64) << 32) | c.fid2.0 as u64;
-            emit(feature, 0.5 * (p1 + p2), n_world, c.dist as f64);
-        }
-    } else if let Ok(Some(c)) = query::contact(&pose1, s1, &pose2, s2, alert as f32) {
-        let p = x1 + 0.5 * (v64(c.point1) + v64(c.point2));
-        emit(0, p, -v64(c.normal1), c.dist as f64);
-    }
-}
-
 /// Contacts between bodies `i < j`.
 pub fn body_body(bodies: &Bodies, config: &Configuration, i: usize, j: usize, alert: f64, out: &mut Vec<DetectedContact>) {
     let (xi, xj) = (config.position[i], config.position[j]);
-    if let (BodyShape::Disk { radius: ri }, BodyShape::Disk { radius: rj }) = (bodies.shape[i], bodies.shape[j]) {
-        let (gap, normal, point) = disk_disk(xi, ri, xj, rj);
-        if gap <= alert {
-            out.push(DetectedContact { i, other: Antagonist::Body(j), feature: 0, point, normal, gap });
-        }
-        return;
-    }
-    if bodies.inv_mass[i] == 0.0 && bodies.inv_mass[j] == 0.0 {
-        return;
-    }
-    let (gi, gj) = (body_geometry(bodies, i), body_geometry(bodies, j));
-    // parry's shape 1 must be a body; a disk–polygon pair is posed with the polygon first when needed.
-    parry_contacts(&gi, xi, config.angle_of(i), &gj, xj, config.angle_of(j), alert, |feature, point, normal, gap| {
+    let push = |out: &mut Vec<DetectedContact>, feature: u64, point: DVec2, normal: DVec2, gap: f64| {
         out.push(DetectedContact { i, other: Antagonist::Body(j), feature, point, normal, gap })
-    });
+    };
+    match (bodies.shape[i], bodies.shape[j]) {
+        (BodyShape::Disk { radius: ri }, BodyShape::Disk { radius: rj }) => {
+            let (gap, normal, point) = disk_disk(xi, ri, xj, rj);
+            if gap <= alert {
+                push(out, 0, point, normal, gap);
+            }
+        }
+        _ if bodies.inv_mass[i] == 0.0 && bodies.inv_mass[j] == 0.0 => {}
+        (BodyShape::Disk { radius }, BodyShape::Polygon(p)) => {
+            if let Some((point, normal, gap)) = disk_polygon(xi, radius, &bodies.polygons[p as usize].parry, xj, config.angle_of(j), alert) {
+                push(out, 0, point, normal, gap);
+            }
+        }
+        (BodyShape::Polygon(p), BodyShape::Disk { radius }) => {
+            if let Some((point, normal, gap)) = disk_polygon(xj, radius, &bodies.polygons[p as usize].parry, xi, config.angle_of(i), alert) {
+                push(out, 0, point, -normal, gap);
+            }
+        }
+        (BodyShape::Polygon(_), BodyShape::Polygon(_)) => {
+            let mut pts = Vec::new();
+            let (a, b) = (world_vertices(bodies, config, i), world_vertices(bodies, config, j));
+            polygon_polygon(&a, &b, alert, &mut pts);
+            for c in pts {
+                push(out, c.feature, c.point, c.normal, c.gap);
+            }
+        }
+    }
+}
+
+fn world_vertices(bodies: &Bodies, config: &Configuration, k: usize) -> Vec<DVec2> {
+    let BodyShape::Polygon(p) = bodies.shape[k] else { return Vec::new() };
+    let rot = DVec2::from_angle(config.angle_of(k));
+    bodies.polygons[p as usize].vertices.iter().map(|v| config.position[k] + rot.rotate(*v)).collect()
 }
 
 /// Contacts between body `k` and wall `w`.
@@ -150,21 +108,30 @@ pub fn body_wall(
     out: &mut Vec<DetectedContact>,
 ) {
     let x = config.position[k];
-    let rot = DVec2::from_angle(wall.angle);
-    if let (BodyShape::Disk { radius }, WallShape::Segment { a, b }) = (bodies.shape[k], &wall.shape) {
-        let (gap, normal, point) = disk_segment(x, radius, wall.center + rot.rotate(*a), wall.center + rot.rotate(*b));
-        if gap <= alert {
-            out.push(DetectedContact { i: k, other: Antagonist::Wall(w), feature: 0, point, normal, gap });
-        }
-        return;
-    }
-    let gw = match &wall.shape {
-        WallShape::Segment { a, b } => Geometry::Segment(*a, *b),
-        WallShape::Polygon(p) => Geometry::Polygon(&p.parry),
-    };
-    parry_contacts(&body_geometry(bodies, k), x, config.angle_of(k), &gw, wall.center, wall.angle, alert, |feature, point, normal, gap| {
+    let push = |out: &mut Vec<DetectedContact>, feature: u64, point: DVec2, normal: DVec2, gap: f64| {
         out.push(DetectedContact { i: k, other: Antagonist::Wall(w), feature, point, normal, gap })
-    });
+    };
+    match (bodies.shape[k], &wall.shape) {
+        (BodyShape::Disk { radius }, WallShape::Segment { .. }) => {
+            let p = wall.world_points();
+            let (gap, normal, point) = disk_segment(x, radius, p[0], p[1]);
+            if gap <= alert {
+                push(out, 0, point, normal, gap);
+            }
+        }
+        (BodyShape::Disk { radius }, WallShape::Polygon(poly)) => {
+            if let Some((point, normal, gap)) = disk_polygon(x, radius, &poly.parry, wall.center, wall.angle, alert) {
+                push(out, 0, point, normal, gap);
+            }
+        }
+        (BodyShape::Polygon(_), _) => {
+            let mut pts = Vec::new();
+            polygon_polygon(&world_vertices(bodies, config, k), &wall.world_points(), alert, &mut pts);
+            for c in pts {
+                push(out, c.feature, c.point, c.normal, c.gap);
+            }
+        }
+    }
 }
 
 #[cfg(test)]

@@ -177,13 +177,18 @@ enum GenerateKind {
     Grid,
     /// Geometric deposition: a dense packing already in contact (disks only).
     Deposition,
+    /// A pyramid of square boxes (side 2 r_min) standing on `region.min`, `base` boxes wide.
+    Pyramid,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct GenerateSpec {
     kind: GenerateKind,
-    count: usize,
+    /// Number of grains (grid, deposition).
+    count: Option<usize>,
+    /// Boxes in the bottom row (pyramid).
+    base: Option<usize>,
     /// `[r_min, r_max]`, radii uniform in between (for polygons: circumradius).
     radius: P,
     region: BoxSpec,
@@ -451,9 +456,12 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         if !(lo.is_finite() && hi.is_finite() && lo.x < hi.x && lo.y < hi.y) {
             return cx.err(g.span(), field("region"), "needs finite min < max");
         }
-        if spec.count == 0 {
-            return cx.err(g.span(), field("count"), "must be >= 1");
-        }
+        let count = match (spec.kind, spec.count, spec.base) {
+            (GenerateKind::Pyramid, _, Some(b)) if b >= 1 => b * (b + 1) / 2,
+            (GenerateKind::Pyramid, _, _) => return cx.err(g.span(), field("base"), "a pyramid needs base >= 1"),
+            (_, Some(c), _) if c >= 1 => c,
+            _ => return cx.err(g.span(), field("count"), "needs count >= 1"),
+        };
         let layer_materials: Vec<usize> = match (&spec.materials, &spec.material) {
             (Some(list), _) if !list.is_empty() => list
                 .iter()
@@ -466,7 +474,7 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         let (centers, radii) = match spec.kind {
             GenerateKind::Grid => {
                 let spacing = spec.spacing.unwrap_or(0.02 * r_max);
-                generate::grid_fill(lo, hi, spec.count, r_min, r_max, spacing, seed).or_else(|m| cx.err(g.span(), field("count"), m))?
+                generate::grid_fill(lo, hi, count, r_min, r_max, spacing, seed).or_else(|m| cx.err(g.span(), field("count"), m))?
             }
             GenerateKind::Deposition => {
                 if spec.sides.is_some() {
@@ -475,13 +483,24 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
                 if hi.x - lo.x < 2.0 * r_max {
                     return cx.err(g.span(), field("region"), "narrower than one grain");
                 }
-                let (c, r) = deposition::deposit_disks(lo.x, hi.x, lo.y, spec.count, r_min, r_max, seed);
+                let (c, r) = deposition::deposit_disks(lo.x, hi.x, lo.y, count, r_min, r_max, seed);
                 if let Some(top) = c.iter().zip(&r).map(|(c, r)| c.y + r).reduce(f64::max) {
                     if top > hi.y {
-                        return cx.err(g.span(), field("region"), format!("{} grains pile up to y = {top:.4}, above the region's top {}", spec.count, hi.y));
+                        return cx.err(g.span(), field("region"), format!("{count} grains pile up to y = {top:.4}, above the region's top {}", hi.y));
                     }
                 }
                 (c, r)
+            }
+            GenerateKind::Pyramid => {
+                let base = spec.base.unwrap_or(1);
+                let side = 2.0 * r_min;
+                let mut centers = Vec::with_capacity(count);
+                for row in 0..base {
+                    for k in 0..base - row {
+                        centers.push(lo + DVec2::new((row as f64 / 2.0 + k as f64 + 0.5) * side, (row as f64 + 0.5) * side));
+                    }
+                }
+                (centers, vec![r_min; count])
             }
         };
         let velocity = spec.velocity.map(v).unwrap_or(DVec2::ZERO);
@@ -490,6 +509,11 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
             let layer = n * layers / centers.len();
             let material = layer_materials[layer % layer_materials.len()];
             let mut body = match spec.sides {
+                _ if spec.kind == GenerateKind::Pyramid => {
+                    let h = *r;
+                    let square = vec![DVec2::new(-h, -h), DVec2::new(h, -h), DVec2::new(h, h), DVec2::new(-h, h)];
+                    BodySpec::polygon(*c, square, material)
+                }
                 None => BodySpec::disk(*c, *r, material),
                 Some(s) if s >= 3 => {
                     use rand::Rng;

@@ -51,26 +51,23 @@ fn operator(world: &World, predicted: &[DVec2], contacts: &[DetectedContact], do
     MatrixFree::with_dofs(bodies, &rows, dofs)
 }
 
-/// Alert distance of this step: the scene's, widened by how far two bodies (or a body and a
-/// wall) can approach each other within the step, so that no contact is first seen already
-/// overlapping. Open contacts cost nothing in the solution: their gap term keeps them inactive
-/// unless they would close within the step.
-fn swept_alert(world: &World, h: f64, alert: f64) -> f64 {
+/// How far each body and each wall can move within the step (speed × h), so that detection
+/// widens the alert distance of exactly the pairs that could close. Open contacts cost nothing
+/// in the solution: their gap term keeps them inactive unless they would close within the step.
+fn step_reach(world: &World, h: f64) -> (Vec<f64>, Vec<f64>) {
     let b = &world.bodies;
-    let mut speed = 0.0f64;
-    for k in 0..b.len() {
-        let mut s = b.velocity[k].length();
-        if b.has_rotation() {
-            s += b.spin[k].abs() * b.bounding_radius[k];
-        }
-        speed = speed.max(s);
-    }
-    let wall_speed = world
+    let bodies = (0..b.len())
+        .map(|k| {
+            let spin = if b.has_rotation() { b.spin[k].abs() * b.bounding_radius[k] } else { 0.0 };
+            h * (b.velocity[k].length() + spin)
+        })
+        .collect();
+    let walls = world
         .walls
         .iter()
-        .map(|w| w.velocity.length() + w.spin.abs() * w.world_points().iter().map(|p| p.distance(w.center)).fold(0.0, f64::max))
-        .fold(0.0, f64::max);
-    alert + h * (2.0 * speed).max(speed + wall_speed)
+        .map(|w| h * (w.velocity.length() + w.spin.abs() * w.world_points().iter().map(|p| p.distance(w.center)).fold(0.0, f64::max)))
+        .collect();
+    (bodies, walls)
 }
 
 /// Largest overlap at the end of the step, from the detection gaps moved to first order by the
@@ -124,7 +121,8 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
     let mut walls = world.walls.clone();
     walls.iter_mut().for_each(|w| w.advance(theta * h));
     let config = Configuration { position: &predicted, angle: &predicted_angle };
-    let mut detected = sim.detector.detect(b, &config, &walls, swept_alert(world, h, sim.settings.alert));
+    let (reach, wall_reach) = step_reach(world, h);
+    let mut detected = sim.detector.detect(b, &config, &walls, sim.settings.alert, &reach, &wall_reach);
     detected.retain(|c| match c.other {
         Antagonist::Body(j) => b.inv_mass[c.i] > 0.0 || b.inv_mass[j] > 0.0,
         Antagonist::Wall(_) => b.inv_mass[c.i] > 0.0,

@@ -1,0 +1,207 @@
+//! Scene files: every shipped scene builds and steps; bad scenes get errors that name the line
+//! and the field; effects that are off cost nothing; `moreau run` writes its outputs.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use moreau::scene::{self, SceneError};
+use moreau::stepping::Simulation;
+
+fn scenes_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
+}
+
+#[test]
+fn every_shipped_scene_builds_and_runs_a_few_steps() {
+    let mut names = Vec::new();
+    for entry in std::fs::read_dir(scenes_dir()).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            let mut s = scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            assert!(s.warnings.is_empty(), "{}: {:?}", path.display(), s.warnings);
+            // A few cheap steps: the big scenes are for benchmarks, not for tests.
+            s.settings.options.max_iter = s.settings.options.max_iter.min(30);
+            let n = s.world.bodies.len();
+            let mut sim = Simulation::new(s.world, s.settings).unwrap();
+            for _ in 0..2 {
+                let r = sim.step().unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                assert!(r.error.is_finite() && r.kinetic_energy.is_finite());
+                assert!(r.max_penetration <= 0.05 * sim.world.mean_diameter(), "{}: {:?}", path.display(), r);
+            }
+            names.push((path.file_stem().unwrap().to_string_lossy().into_owned(), n, sim.contacts().len()));
+        }
+    }
+    for required in ["pile", "box_compaction", "sandbox", "rotating_drum", "hopper", "column_collapse", "polygon_pile", "box_pyramid"] {
+        assert!(names.iter().any(|(n, ..)| n == required), "scenes/{required}.toml is missing");
+    }
+    let (_, n, contacts) = names.iter().find(|(n, ..)| n == "sandbox").unwrap();
+    assert!(*n >= 40_000 && *contacts > 40_000, "sandbox: {n} grains, {contacts} contacts");
+    let (_, n, _) = names.iter().find(|(n, ..)| n == "box_compaction").unwrap();
+    assert!(*n >= 30_000);
+}
+
+const GOOD: &str = r#"
+effects = ["gravity", "friction"]
+[time]
+step = 1e-3
+steps = 10
+[contact]
+friction = 0.3
+[[material]]
+name = "m"
+density = 1000.0
+[[wall]]
+segment = [[0.0, 0.0], [1.0, 0.0]]
+[[body]]
+disk = { center = [0.5, 0.1], radius = 0.1 }
+"#;
+
+fn error_of(text: &str) -> SceneError {
+    match scene::parse(text, Path::new("bad.toml")) {
+        Ok(_) => panic!("accepted a bad scene:\n{text}"),
+        Err(e) => e,
+    }
+}
+
+fn assert_scene_error(text: &str, line: usize, needles: &[&str]) {
+    let e = error_of(text).to_string();
+    assert!(e.starts_with(&format!("bad.toml: line {line}:")), "error '{e}' does not name line {line}");
+    for n in needles {
+        assert!(e.contains(n), "error '{e}' does not mention '{n}'");
+    }
+}
+
+#[test]
+fn bad_scenes_get_errors_naming_line_and_field() {
+    assert!(scene::parse(GOOD, Path::new("good.toml")).is_ok());
+    // Line numbers count from the leading newline of GOOD (line 1 is empty). A value that is
+    // wrong is reported at the header of its table (`[[material]]`, `[[body]]`…) with its field path.
+    assert_scene_error(&GOOD.replace("radius = 0.1 }", "radus = 0.1 }"), 14, &["radus"]);
+    assert_scene_error(&GOOD.replace("density = 1000.0", "density = -3.0"), 8, &["material[0].density", "-3"]);
+    assert_scene_error(&GOOD.replace("density = 1000.0", "density = nan"), 8, &["density", "NaN"]);
+    assert_scene_error(&GOOD.replace("radius = 0.1 }", "radius = 0.0 }"), 13, &["body[0]", "radius"]);
+    assert_scene_error(&GOOD.replace("step = 1e-3", "step = -1e-3"), 3, &["time step"]);
+    assert_scene_error(&GOOD.replace("steps = 10", "steps = 0"), 3, &["time.steps"]);
+    assert_scene_error(&GOOD.replace("[1.0, 0.0]]", "[1.0, 0.0]]\nvelocity = [1.0, 0.0]"), 11, &["wall[0].velocity", "moving_walls"]);
+    assert_scene_error(&GOOD.replace("\"friction\"]", "\"friction\", \"rolling_resistance\"]"), 2, &["rolling_resistance", "not implemented"]);
+    assert_scene_error(&GOOD.replace("\"friction\"]", "\"frction\"]"), 2, &["frction"]);
+    assert_scene_error(
+        &GOOD.replace("disk = { center = [0.5, 0.1], radius = 0.1 }", "polygon = { center = [0.5, 0.1], vertices = [[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]] }"),
+        13,
+        &["body[0]", "degenerate polygon"],
+    );
+    assert_scene_error(&GOOD.replace("[[body]]\n", "[[body]]\nmaterial = \"steel\"\n"), 13, &["body[0].material", "steel"]);
+    assert_scene_error(&format!("{GOOD}[solver]\nname = \"magic\"\n"), 15, &["solver.name", "magic", "nlgs"]);
+    assert_scene_error(&GOOD.replace("[time]", "[time"), 3, &[]);
+    // Generators that cannot fit say so.
+    let crowded = format!(
+        "{GOOD}[[generate]]\nkind = \"grid\"\ncount = 1000\nradius = [0.1, 0.1]\nregion = {{ min = [0.0, 0.0], max = [1.0, 1.0] }}\n"
+    );
+    assert_scene_error(&crowded, 15, &["generate[0].count", "holds 16"]);
+    // Hostile input: a truncated file, binary junk, an empty file.
+    let _ = error_of(&GOOD[..GOOD.len() / 2]);
+    let _ = error_of("\u{0}\u{1}\u{2}garbage = [[[");
+    assert!(error_of("").to_string().contains("time"));
+}
+
+#[test]
+fn effects_that_are_off_allocate_nothing_and_add_no_rows() {
+    let with = scene::parse(&GOOD.replace("\"friction\"]", "\"friction\", \"rotation\"]"), Path::new("a.toml")).unwrap();
+    let without = scene::parse(GOOD, Path::new("b.toml")).unwrap();
+    assert!(with.world.bodies.angle.len() == 1 && with.world.bodies.inertia.len() == 1);
+    assert!(without.world.bodies.angle.is_empty() && without.world.bodies.spin.is_empty() && without.world.bodies.inertia.is_empty());
+    assert!(without.world.bodies.memory_bytes() < with.world.bodies.memory_bytes());
+    // A frictionless scene: tangential impulses stay exactly zero, the operator has no lever arms.
+    let frictionless = scene::parse(&GOOD.replace("\"gravity\", \"friction\"", "\"gravity\""), Path::new("c.toml")).unwrap();
+    let mut sim = Simulation::new(frictionless.world, frictionless.settings).unwrap();
+    sim.keep_problems(true);
+    for _ in 0..120 {
+        sim.step().unwrap();
+    }
+    assert!(!sim.contacts().is_empty());
+    assert!(sim.contacts().iter().all(|c| c.impulse[1] == 0.0 && c.impulse[0] > 0.0));
+    let p = sim.last_problem().unwrap();
+    assert!(p.mu.iter().all(|&m| m == 0.0));
+    let moreau::problem::Delassus::MatrixFree(op) = &p.w else { panic!("simulation problems are matrix-free") };
+    assert_eq!(op.dofs(), moreau::problem::matrix_free::Dofs { rotation: false, friction: false });
+}
+
+#[test]
+fn cohesion_holds_a_disk_under_a_ceiling_until_its_weight_exceeds_it() {
+    // A disk of mass m = ρπr² hangs under a ceiling segment: cohesion c per step holds it when
+    // c ≥ m g h (the impulse of its weight over one step).
+    let hanging = |cohesion: f64| {
+        let text = format!(
+            r#"
+effects = ["gravity", "cohesion"]
+[time]
+step = 1e-3
+steps = 200
+[solver]
+tol = 1e-10
+[contact]
+cohesion = {cohesion}
+[[material]]
+name = "m"
+density = 1000.0
+[[wall]]
+segment = [[-1.0, 0.1], [1.0, 0.1]]
+[[body]]
+disk = {{ center = [0.0, 0.0], radius = 0.1 }}
+"#
+        );
+        let s = scene::parse(&text, Path::new("cohesion.toml")).unwrap();
+        let mut sim = Simulation::new(s.world, s.settings).unwrap();
+        for _ in 0..200 {
+            sim.step().unwrap();
+        }
+        sim.position(0).y
+    };
+    let weight_impulse = 1000.0 * std::f64::consts::PI * 0.01 * 9.81 * 1e-3;
+    assert!(hanging(1.2 * weight_impulse).abs() < 1e-9, "held by cohesion");
+    assert!(hanging(0.8 * weight_impulse) < -0.1, "too weak a bond lets it fall");
+}
+
+#[test]
+fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
+    let out = std::env::temp_dir().join(format!("moreau-run-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let status = Command::new(env!("CARGO_BIN_EXE_moreau"))
+        .args(["run", "scenes/pile.toml", "--steps", "40", "--vtk-every", "20", "--dump-problem", "30", "--quiet", "--out"])
+        .arg(&out)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
+    let stdout = String::from_utf8_lossy(&status.stdout);
+    assert!(stdout.contains("pile: 40 steps"), "{stdout}");
+    let csv = std::fs::read_to_string(out.join("steps.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header = lines.next().unwrap();
+    for col in ["step", "time", "contacts", "iterations", "error", "converged", "max_penetration", "kinetic_energy", "seconds"] {
+        assert!(header.split(',').any(|c| c == col), "steps.csv lacks {col}: {header}");
+    }
+    assert_eq!(lines.count(), 40);
+    let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["steps"], 40);
+    assert_eq!(summary["device"], "cpu");
+    for f in ["grains.pvd", "contacts.pvd", "walls.pvd", "grains_000020.vtu", "contacts_000040.vtu", "state_000040.png", "problem_000030.dat"] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    let pvd = std::fs::read_to_string(out.join("grains.pvd")).unwrap();
+    assert!(pvd.contains("grains_000020.vtu") && pvd.contains("grains_000040.vtu"));
+    let vtu = std::fs::read_to_string(out.join("contacts_000040.vtu")).unwrap();
+    assert!(vtu.contains("normal_impulse") && vtu.contains("status"));
+    // The dumped problem is a valid Siconos file that `moreau solve` solves.
+    let problem = moreau::io::siconos::read_fc2d(&out.join("problem_000030.dat")).unwrap();
+    assert!(problem.n_contacts() > 0);
+    let report = moreau::solve(&problem, moreau::SolverKind::Nlgs, &moreau::SolverOptions { tol: 1e-6, ..Default::default() }, None);
+    assert!(report.converged, "{}", report.stop_reason);
+    // A bad scene gives exit code 2 and names the file.
+    let bad = out.join("bad.toml");
+    std::fs::write(&bad, "effects = [\"gravity\"]\n[time]\nstep = 1.0\n").unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_moreau")).args(["run", "--quiet"]).arg(&bad).output().unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("bad.toml"));
+    let _ = std::fs::remove_dir_all(&out);
+}
