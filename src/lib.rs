@@ -8,6 +8,7 @@
 
 pub mod cli;
 pub mod detection;
+pub mod gpu;
 pub mod io;
 pub mod problem;
 pub mod scene;

@@ -153,15 +153,51 @@ fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// Picks the device; only the CPU path exists in this build, so `gpu` is an error and `auto` says so.
-fn resolve_device(choice: DeviceChoice) -> Result<&'static str> {
-    match choice {
-        DeviceChoice::Cpu => Ok("cpu"),
-        DeviceChoice::Auto => {
-            eprintln!("device: cpu (this build of moreau has no GPU path yet)");
-            Ok("cpu")
+/// Where a solve runs.
+pub(crate) enum Device {
+    Cpu,
+    Gpu(crate::gpu::GpuContext),
+}
+
+impl Device {
+    pub(crate) fn name(&self) -> &'static str {
+        match self {
+            Device::Cpu => "cpu",
+            Device::Gpu(_) => "gpu",
         }
-        DeviceChoice::Gpu => bail!("--device gpu: this build of moreau has no GPU path yet; use --device cpu"),
+    }
+}
+
+/// Picks the device for a solve with `solver`: `gpu` demands an adapter (a hardware one, else
+/// the software adapter) and a GPU version of the solver; `auto` takes the GPU when both exist
+/// and otherwise says why it uses the CPU.
+pub(crate) fn resolve_device(choice: DeviceChoice, solver: SolverKind) -> Result<Device> {
+    match choice {
+        DeviceChoice::Cpu => Ok(Device::Cpu),
+        DeviceChoice::Gpu => {
+            if !crate::gpu::supports(solver) {
+                bail!("--device gpu: {}", crate::gpu::GpuError::Unsupported(solver.name().to_string()));
+            }
+            let ctx = crate::gpu::GpuContext::new()?;
+            eprintln!("device: gpu — {}", ctx.describe());
+            Ok(Device::Gpu(ctx))
+        }
+        DeviceChoice::Auto => {
+            if !crate::gpu::supports(solver) {
+                eprintln!("device: cpu (the GPU path has no {} solver yet)", solver.name());
+                return Ok(Device::Cpu);
+            }
+            match crate::gpu::GpuContext::new() {
+                Ok(ctx) => {
+                    eprintln!("device: gpu — {}", ctx.describe());
+                    Ok(Device::Gpu(ctx))
+                }
+                Err(e) => {
+                    eprintln!("device: cpu ({e})");
+                    Ok(Device::Cpu)
+                }
+            }
+        }
     }
 }
 
@@ -181,8 +217,8 @@ fn solve_command(a: SolveArgs) -> Result<()> {
     if a.max_iter == 0 {
         bail!("--max-iter must be at least 1");
     }
-    let device = resolve_device(a.device)?;
     let problem = read_fc2d(&a.file)?;
+    let device = resolve_device(a.device, a.solver)?;
     let opts = SolverOptions {
         tol: a.tol,
         max_iter: a.max_iter,
@@ -195,14 +231,20 @@ fn solve_command(a: SolveArgs) -> Result<()> {
         apgd_threshold_every: a.apgd_threshold_every,
         history_every: a.history_every,
     };
-    let report = solve(&problem, a.solver, &opts, None);
+    let (report, adapter) = match &device {
+        Device::Cpu => (solve(&problem, a.solver, &opts, None), None),
+        Device::Gpu(ctx) => (crate::gpu::solve(ctx, &problem, a.solver, &opts, None)?, Some(ctx.adapter_name())),
+    };
+    let device = device.name();
     println!("{}", summary_line(&report, device, a.tol));
     if !report.converged {
         eprintln!("warning: {} did not converge: {}", report.solver, report.stop_reason);
     }
     if let Some(out) = &a.out {
         let name = a.file.display().to_string();
-        let json = serde_json::to_string(&SolveOutput::new(&name, device, &opts, &report))?;
+        let mut output = SolveOutput::new(&name, device, &opts, &report);
+        output.adapter = adapter.as_deref();
+        let json = serde_json::to_string(&output)?;
         std::fs::write(out, json).with_context(|| format!("writing {}", out.display()))?;
     }
     Ok(())

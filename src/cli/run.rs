@@ -6,7 +6,7 @@ use std::time::Duration;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::{resolve_device, DeviceChoice};
+use super::DeviceChoice;
 use crate::io::run_output::{RunOutput, RunSummary};
 use crate::io::siconos::{write_fc2d, Storage};
 use crate::scene;
@@ -51,7 +51,15 @@ pub struct RunArgs {
 const WARNINGS_SHOWN: usize = 5;
 
 pub fn run_command(a: RunArgs) -> Result<()> {
-    let device = resolve_device(a.device)?;
+    // Simulations run their solves on the CPU for now; `moreau solve` has the GPU path.
+    let device = match a.device {
+        DeviceChoice::Gpu => bail!("--device gpu: moreau run does not use the GPU path yet (moreau solve --device gpu --solver jacobi does)"),
+        DeviceChoice::Auto => {
+            eprintln!("device: cpu (moreau run does not use the GPU path yet)");
+            "cpu"
+        }
+        DeviceChoice::Cpu => "cpu",
+    };
     let mut scene = scene::load(&a.scene)?;
     for w in &scene.warnings {
         eprintln!("warning: {w}");

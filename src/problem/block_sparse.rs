@@ -5,9 +5,9 @@ use super::Mat2;
 
 #[derive(Clone, Debug)]
 pub struct BlockSparse {
-    row_ptr: Vec<usize>,
-    cols: Vec<usize>,
-    blocks: Vec<Mat2>,
+    pub(crate) row_ptr: Vec<usize>,
+    pub(crate) cols: Vec<usize>,
+    pub(crate) blocks: Vec<Mat2>,
     diag_pos: Vec<usize>, // index into blocks of (a, a), usize::MAX if absent
 }
 

@@ -17,7 +17,8 @@ pub enum ContactStatus {
 #[inline]
 pub fn project_cone(x: [f64; 2], mu: f64) -> [f64; 2] {
     let (xn, xt) = (x[0], x[1]);
-    if xt.abs() <= mu * xn {
+    // `xn >= 0` matters when μ = 0: then μ x_n is ±0 and |x_t| ≤ μ x_n holds for x = (−1, 0).
+    if xn >= 0.0 && xt.abs() <= mu * xn {
         x
     } else if mu * xt.abs() <= -xn {
         [0.0, 0.0]
@@ -132,7 +133,7 @@ mod tests {
 
     #[test]
     fn cone_projection_is_idempotent_and_admissible() {
-        for &(x, mu) in &[([1.0, 0.2], 0.5), ([1.0, 2.0], 0.5), ([-1.0, 0.1], 0.3), ([-0.1, 3.0], 0.8), ([0.3, -4.0], 0.0)] {
+        for &(x, mu) in &[([1.0, 0.2], 0.5), ([1.0, 2.0], 0.5), ([-1.0, 0.1], 0.3), ([-0.1, 3.0], 0.8), ([0.3, -4.0], 0.0), ([-1.0, 0.0], 0.0)] {
             let p = project_cone(x, mu);
             assert!(p[1].abs() <= mu * p[0] + 1e-15 && p[0] >= 0.0, "{p:?}");
             assert_eq!(project_cone(p, mu), p);

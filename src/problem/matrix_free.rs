@@ -61,23 +61,24 @@ impl Dofs {
 /// Precomputed rows of `B` for one contact: body i gets `+[e_x, e_y, ρ_i×e]`, body j `−[e_x, e_y, ρ_j×e]`.
 /// The rotational parts `ρ×e` live in a separate array that exists only when rotation is on.
 #[derive(Clone, Copy, Debug)]
-struct ContactRows {
-    i: usize,
-    j: usize, // NO_BODY when the antagonist is fixed
-    n: [f64; 2],
+pub(crate) struct ContactRows {
+    pub(crate) i: usize,
+    pub(crate) j: usize, // NO_BODY when the antagonist is fixed
+    pub(crate) n: [f64; 2],
 }
 
 /// `(ρ_i × n, ρ_i × t, ρ_j × n, ρ_j × t)`.
-type Levers = [f64; 4];
+pub(crate) type Levers = [f64; 4];
 
-const NO_BODY: usize = usize::MAX;
+pub(crate) const NO_BODY: usize = usize::MAX;
 
 #[derive(Clone, Debug)]
 pub struct MatrixFree {
-    bodies: Vec<Body>,
-    rows: Vec<ContactRows>,
-    levers: Vec<Levers>,
-    dofs: Dofs,
+    pub(crate) bodies: Vec<Body>,
+    pub(crate) rows: Vec<ContactRows>,
+    /// Empty without rotation.
+    pub(crate) levers: Vec<Levers>,
+    pub(crate) dofs: Dofs,
 }
 
 fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {

@@ -1,0 +1,66 @@
+//! A headless wgpu device: a hardware adapter when there is one, else the software adapter
+//! (Mesa's lavapipe, a "CPU" device), with the adapter's own limits so large problems fit.
+
+use thiserror::Error;
+
+#[derive(Debug, Error)]
+pub enum GpuError {
+    #[error("no GPU adapter found (hardware or software): {0}; on Debian, `apt-get install mesa-vulkan-drivers libvulkan1` provides the software adapter")]
+    NoAdapter(String),
+    #[error("the adapter {adapter} refused a device: {message}")]
+    NoDevice { adapter: String, message: String },
+    #[error("the GPU path has no {0} solver yet (it has: jacobi)")]
+    Unsupported(String),
+    #[error("GPU: {0}")]
+    Runtime(String),
+}
+
+pub struct GpuContext {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+}
+
+impl GpuContext {
+    /// The best adapter: hardware first, then the software fallback.
+    pub fn new() -> Result<Self, GpuError> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let request = |fallback: bool| {
+            pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+                power_preference: wgpu::PowerPreference::HighPerformance,
+                force_fallback_adapter: fallback,
+                compatible_surface: None,
+                ..Default::default()
+            }))
+        };
+        let adapter = request(false).or_else(|_| request(true)).map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        let info = adapter.get_info();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("moreau"),
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::NoDevice { adapter: info.name.clone(), message: e.to_string() })?;
+        Ok(Self { device, queue, info })
+    }
+
+    /// True for a software rasteriser such as lavapipe: correct, never fast.
+    pub fn is_software(&self) -> bool {
+        self.info.device_type == wgpu::DeviceType::Cpu
+    }
+
+    /// The adapter's name, as recorded in outputs.
+    pub fn adapter_name(&self) -> String {
+        self.info.name.clone()
+    }
+
+    /// One line for the user: name, backend, hardware or software.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} ({:?}, {})",
+            self.info.name,
+            self.info.backend,
+            if self.is_software() { "software adapter" } else { "hardware" }
+        )
+    }
+}

@@ -1,0 +1,7 @@
+//! CPU mirrors of the WGSL kernels, one file per kernel and named the same (as vello does), in
+//! f32 with the kernels' order of operations, so that every GPU stage can be checked on its own.
+
+pub mod body_accumulate;
+pub mod bsr_product;
+pub mod contact_gather;
+pub mod jacobi_update;

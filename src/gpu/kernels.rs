@@ -1,0 +1,97 @@
+//! Compute pipelines of the WGSL kernels in shaders/, specialised by pipeline-overridable
+//! constants: a scene without rotation or friction runs kernels compiled without that work.
+
+use wgpu::util::DeviceExt;
+
+use super::context::GpuContext;
+
+pub const WORKGROUP: u32 = 64;
+
+fn pipeline(ctx: &GpuContext, name: &str, source: &str, constants: &[(&str, f64)]) -> wgpu::ComputePipeline {
+    let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(name),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(name),
+        layout: None,
+        module: &module,
+        entry_point: Some("main"),
+        compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
+        cache: None,
+    })
+}
+
+/// Pipelines of one specialisation (rotation, friction).
+pub struct Kernels {
+    pub body_accumulate: wgpu::ComputePipeline,
+    pub contact_gather: wgpu::ComputePipeline,
+    pub bsr_product: wgpu::ComputePipeline,
+    pub jacobi_update: wgpu::ComputePipeline,
+}
+
+impl Kernels {
+    pub fn new(ctx: &GpuContext, rotation: bool, friction: bool) -> Self {
+        let flags = [("ROTATION", rotation as u8 as f64), ("FRICTION", friction as u8 as f64)];
+        Self {
+            body_accumulate: pipeline(ctx, "body_accumulate", include_str!("../../shaders/body_accumulate.wgsl"), &flags),
+            contact_gather: pipeline(ctx, "contact_gather", include_str!("../../shaders/contact_gather.wgsl"), &flags),
+            bsr_product: pipeline(ctx, "bsr_product", include_str!("../../shaders/bsr_product.wgsl"), &[]),
+            jacobi_update: pipeline(ctx, "jacobi_update", include_str!("../../shaders/jacobi_update.wgsl"), &[]),
+        }
+    }
+}
+
+/// A storage buffer holding `data` (at least 4 bytes: wgpu rejects empty bindings).
+pub fn storage<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, data: &[T]) -> wgpu::Buffer {
+    let bytes: &[u8] = bytemuck::cast_slice(data);
+    let padded;
+    let contents = if bytes.is_empty() {
+        padded = [0u8; 4];
+        &padded[..]
+    } else {
+        bytes
+    };
+    ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+    })
+}
+
+pub fn bind(ctx: &GpuContext, pipeline: &wgpu::ComputePipeline, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> =
+        buffers.iter().enumerate().map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() }).collect();
+    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &pipeline.get_bind_group_layout(0), entries: &entries })
+}
+
+/// Workgroups to cover `n` items.
+pub fn groups(n: usize) -> u32 {
+    (n as u32).div_ceil(WORKGROUP).max(1)
+}
+
+/// Copies `buffer` back to the CPU as `T`s.
+pub fn read_back<T: bytemuck::Pod>(ctx: &GpuContext, buffer: &wgpu::Buffer, count: usize) -> Result<Vec<T>, String> {
+    let size = (count * std::mem::size_of::<T>()).max(4) as u64;
+    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("read back"),
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
+    ctx.queue.submit([encoder.finish()]);
+    let slice = staging.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| e.to_string())?;
+    rx.recv().map_err(|e| e.to_string())?.map_err(|e| e.to_string())?;
+    let data = slice.get_mapped_range().map_err(|e| format!("{e:?}"))?;
+    let out = bytemuck::cast_slice::<u8, T>(&data[..count * std::mem::size_of::<T>()]).to_vec();
+    drop(data);
+    staging.unmap();
+    Ok(out)
+}

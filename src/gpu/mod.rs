@@ -1,0 +1,29 @@
+//! The GPU path: WGSL compute kernels (shaders/) on a headless wgpu device, f32, each with a CPU
+//! mirror of the same name in [`cpu`]. Iterations stay on the GPU; the error of a result is
+//! always evaluated in f64 on the CPU with the core's measure.
+
+pub mod context;
+pub mod cpu;
+pub mod jacobi;
+pub mod kernels;
+pub mod layout;
+pub mod operator;
+pub mod stages;
+
+pub use context::{GpuContext, GpuError};
+
+use crate::problem::ContactProblem;
+use crate::solvers::{SolveReport, SolverKind, SolverOptions};
+
+/// Solves `problem` on the GPU with `kind`, or says that the GPU path lacks that solver.
+pub fn solve(ctx: &GpuContext, problem: &ContactProblem, kind: SolverKind, opts: &SolverOptions, r0: Option<&[f64]>) -> Result<SolveReport, GpuError> {
+    match kind {
+        SolverKind::Jacobi => jacobi::solve(ctx, problem, opts, r0),
+        other => Err(GpuError::Unsupported(other.name().to_string())),
+    }
+}
+
+/// Whether the GPU path has this solver.
+pub fn supports(kind: SolverKind) -> bool {
+    matches!(kind, SolverKind::Jacobi)
+}

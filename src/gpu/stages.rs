@@ -1,0 +1,63 @@
+//! Each kernel run once on its own (upload, one dispatch, read back): what the tests compare with
+//! the CPU mirrors in [`super::cpu`], stage by stage.
+
+use super::context::{GpuContext, GpuError};
+use super::kernels::{bind, groups, read_back, storage, Kernels};
+use super::layout::{BsrLayout, MatrixFreeLayout};
+
+fn run(ctx: &GpuContext, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, n: usize) {
+    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, group, &[]);
+        pass.dispatch_workgroups(groups(n), 1, 1);
+    }
+    ctx.queue.submit([encoder.finish()]);
+}
+
+pub fn body_accumulate(ctx: &GpuContext, op: &MatrixFreeLayout, r: &[[f32; 2]]) -> Result<Vec<[f32; 4]>, GpuError> {
+    let k = Kernels::new(ctx, op.rotation, op.friction);
+    let bufs = [
+        storage(ctx, "contacts", &op.contacts),
+        storage(ctx, "start", &op.body_start),
+        storage(ctx, "list", &op.body_list),
+        storage(ctx, "inv_mass", &op.inv_mass),
+        storage(ctx, "r", r),
+        storage(ctx, "v", &vec![[0.0f32; 4]; op.inv_mass.len()]),
+    ];
+    let group = bind(ctx, &k.body_accumulate, &bufs.iter().collect::<Vec<_>>());
+    run(ctx, &k.body_accumulate, &group, op.inv_mass.len());
+    read_back(ctx, &bufs[5], op.inv_mass.len()).map_err(GpuError::Runtime)
+}
+
+pub fn contact_gather(ctx: &GpuContext, op: &MatrixFreeLayout, v: &[[f32; 4]], q: &[[f32; 2]]) -> Result<Vec<[f32; 2]>, GpuError> {
+    let k = Kernels::new(ctx, op.rotation, op.friction);
+    let bufs = [storage(ctx, "contacts", &op.contacts), storage(ctx, "v", v), storage(ctx, "q", q), storage(ctx, "u", &vec![[0.0f32; 2]; q.len()])];
+    let group = bind(ctx, &k.contact_gather, &bufs.iter().collect::<Vec<_>>());
+    run(ctx, &k.contact_gather, &group, q.len());
+    read_back(ctx, &bufs[3], q.len()).map_err(GpuError::Runtime)
+}
+
+pub fn bsr_product(ctx: &GpuContext, w: &BsrLayout, r: &[[f32; 2]], q: &[[f32; 2]]) -> Result<Vec<[f32; 2]>, GpuError> {
+    let k = Kernels::new(ctx, true, true);
+    let bufs = [
+        storage(ctx, "row_ptr", &w.row_ptr),
+        storage(ctx, "cols", &w.cols),
+        storage(ctx, "blocks", &w.blocks),
+        storage(ctx, "r", r),
+        storage(ctx, "q", q),
+        storage(ctx, "u", &vec![[0.0f32; 2]; q.len()]),
+    ];
+    let group = bind(ctx, &k.bsr_product, &bufs.iter().collect::<Vec<_>>());
+    run(ctx, &k.bsr_product, &group, q.len());
+    read_back(ctx, &bufs[5], q.len()).map_err(GpuError::Runtime)
+}
+
+pub fn jacobi_update(ctx: &GpuContext, u: &[[f32; 2]], mu: &[f32], step: &[f32], r: &[[f32; 2]]) -> Result<Vec<[f32; 2]>, GpuError> {
+    let k = Kernels::new(ctx, true, true);
+    let bufs = [storage(ctx, "u", u), storage(ctx, "mu", mu), storage(ctx, "step", step), storage(ctx, "r", r)];
+    let group = bind(ctx, &k.jacobi_update, &bufs.iter().collect::<Vec<_>>());
+    run(ctx, &k.jacobi_update, &group, mu.len());
+    read_back(ctx, &bufs[3], mu.len()).map_err(GpuError::Runtime)
+}

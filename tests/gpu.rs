@@ -1,0 +1,147 @@
+//! The GPU path on whatever adapter wgpu finds (the software adapter, lavapipe, in CI): every
+//! kernel against its CPU mirror on random data, and the GPU solvers against the CPU reference.
+//! Without an adapter these tests say so and pass, unless MOREAU_REQUIRE_GPU=1 (set by CI).
+
+mod common;
+
+use std::path::Path;
+
+use moreau::gpu::cpu;
+use moreau::gpu::layout::{to_f32_pairs, BsrLayout, MatrixFreeLayout};
+use moreau::gpu::{stages, GpuContext};
+use moreau::problem::generate::{lattice_packing, random_small};
+use moreau::problem::{ContactProblem, Delassus};
+use moreau::solvers::{solve, SolverKind, SolverOptions};
+use rand::{Rng, SeedableRng};
+
+fn context() -> Option<GpuContext> {
+    match GpuContext::new() {
+        Ok(ctx) => {
+            eprintln!("adapter: {}", ctx.describe());
+            Some(ctx)
+        }
+        Err(e) if std::env::var("MOREAU_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("{e}"),
+        Err(e) => {
+            eprintln!("skipping the GPU tests: {e}");
+            None
+        }
+    }
+}
+
+/// Kernel and mirror agree to a few f32 roundings of the largest term (fused multiply-adds may
+/// round differently): |gpu − cpu| ≤ 1e-5 · max(1, |cpu|_∞).
+fn assert_close(gpu: &[f32], cpu: &[f32], what: &str) {
+    assert_eq!(gpu.len(), cpu.len());
+    let scale = cpu.iter().fold(1.0f32, |m, x| m.max(x.abs()));
+    for (k, (g, c)) in gpu.iter().zip(cpu).enumerate() {
+        assert!((g - c).abs() <= 1e-5 * scale, "{what}[{k}]: gpu {g} vs cpu {c} (scale {scale})");
+    }
+}
+
+/// A simulation step's matrix-free problem: the pile after 60 steps, with the given effects.
+fn pile_problem(effects: &str) -> ContactProblem {
+    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/pile.toml")).unwrap();
+    let text = text.replace(r#"effects = ["gravity", "friction", "rotation"]"#, &format!("effects = [{effects}]"));
+    let s = moreau::scene::parse(&text, Path::new("pile.toml")).unwrap();
+    let mut sim = moreau::stepping::Simulation::new(s.world, s.settings).unwrap();
+    sim.keep_problems(true);
+    for _ in 0..60 {
+        sim.step().unwrap();
+    }
+    sim.last_problem().unwrap().clone()
+}
+
+#[test]
+fn every_kernel_matches_its_cpu_mirror() {
+    let Some(ctx) = context() else { return };
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(11);
+    let problems = [
+        ("lattice", lattice_packing(30, 20, 0.4, 3)),
+        ("pile", pile_problem(r#""gravity", "friction", "rotation""#)),
+        ("pile without rotation", pile_problem(r#""gravity", "friction""#)),
+        ("frictionless pile", pile_problem(r#""gravity""#)),
+    ];
+    for (name, p) in &problems {
+        let nc = p.n_contacts();
+        // A frictionless operator's tangential rows are decoupled placeholders: r_t ≡ 0 there.
+        let t_scale = if p.is_frictionless() { 0.0 } else { 1.0 };
+        let r: Vec<[f32; 2]> = (0..nc).map(|_| [rng.gen_range(0.0..1.0), t_scale * rng.gen_range(-0.5..0.5)]).collect();
+        let q: Vec<[f32; 2]> = (0..nc).map(|_| [rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)]).collect();
+        let Delassus::MatrixFree(op) = &p.w else { panic!("{name} is matrix-free") };
+        let layout = MatrixFreeLayout::new(op);
+        let nb = layout.inv_mass.len();
+        let gpu_v = stages::body_accumulate(&ctx, &layout, &r).unwrap();
+        let mut cpu_v = vec![[0.0f32; 4]; nb];
+        cpu::body_accumulate::body_accumulate(&layout, &r, &mut cpu_v);
+        assert_close(gpu_v.as_flattened(), cpu_v.as_flattened(), &format!("{name}: body_accumulate"));
+        let gpu_u = stages::contact_gather(&ctx, &layout, &cpu_v, &q).unwrap();
+        let mut cpu_u = vec![[0.0f32; 2]; nc];
+        cpu::contact_gather::contact_gather(&layout, &cpu_v, &q, &mut cpu_u);
+        assert_close(gpu_u.as_flattened(), cpu_u.as_flattened(), &format!("{name}: contact_gather"));
+        // The mirrors compose to the f64 operator: u = W r + q.
+        let r64: Vec<f64> = r.as_flattened().iter().map(|&x| x as f64).collect();
+        let mut w_r = vec![0.0; 2 * nc];
+        p.w.apply(&r64, &mut w_r);
+        let exact: Vec<f32> = w_r.iter().zip(q.as_flattened()).map(|(a, b)| (*a + *b as f64) as f32).collect();
+        assert_close(cpu_u.as_flattened(), &exact, &format!("{name}: mirrors vs f64 W"));
+        // The same operator in block-sparse form.
+        let bsr = BsrLayout::new(&p.w.to_block_sparse());
+        let gpu_b = stages::bsr_product(&ctx, &bsr, &r, &q).unwrap();
+        let mut cpu_b = vec![[0.0f32; 2]; nc];
+        cpu::bsr_product::bsr_product(&bsr, &r, &q, &mut cpu_b);
+        assert_close(gpu_b.as_flattened(), cpu_b.as_flattened(), &format!("{name}: bsr_product"));
+        assert_close(cpu_b.as_flattened(), &exact, &format!("{name}: bsr mirror vs f64 W"));
+        // Jacobi update.
+        let mu: Vec<f32> = p.mu.iter().map(|&m| m as f32).collect();
+        let step: Vec<f32> = (0..nc).map(|_| rng.gen_range(0.1..2.0)).collect();
+        let gpu_r = stages::jacobi_update(&ctx, &cpu_u, &mu, &step, &r).unwrap();
+        let mut cpu_r = r.clone();
+        cpu::jacobi_update::jacobi_update(&cpu_u, &mu, &step, &mut cpu_r);
+        assert_close(gpu_r.as_flattened(), cpu_r.as_flattened(), &format!("{name}: jacobi_update"));
+        assert!(cpu_r.iter().zip(&mu).all(|(r, m)| r[0] >= 0.0 && r[1].abs() <= m * r[0] * (1.0 + 1e-6)));
+    }
+}
+
+#[test]
+fn gpu_jacobi_solves_what_the_cpu_solves() {
+    let Some(ctx) = context() else { return };
+    let opts = SolverOptions { tol: 1e-5, max_iter: 200_000, ..SolverOptions::default() };
+    let mut cases: Vec<(String, ContactProblem)> = vec![
+        ("random_small".into(), random_small(3, 0.5, 7)),
+        ("lattice 20×10".into(), lattice_packing(20, 10, 0.3, 1)),
+        ("pile step 60".into(), pile_problem(r#""gravity", "friction", "rotation""#)),
+        ("frictionless pile step 60".into(), pile_problem(r#""gravity""#)),
+    ];
+    for f in ["FC2D_SliderCrankLagrangian00000.dat", "FC2D_SliderCrankLagrangian00001.dat", "fc2d_granularflowonwall_00667_00000.dat"] {
+        if let Some(path) = common::shared_data(f) {
+            cases.push((f.into(), moreau::io::siconos::read_fc2d(&path).unwrap()));
+        }
+    }
+    for (name, p) in &cases {
+        let cpu = solve(p, SolverKind::Jacobi, &opts, None);
+        let gpu = moreau::gpu::solve(&ctx, p, SolverKind::Jacobi, &opts, None).unwrap();
+        eprintln!("{name}: cpu {} its error {:.2e}; gpu {} its error {:.2e} ({})", cpu.iterations, cpu.error, gpu.iterations, gpu.error, gpu.stop_reason);
+        assert!(cpu.converged, "{name}: the CPU reference did not converge");
+        // The f64 error of the f32 answer reaches 1e-5 (the GPU path's stated floor here).
+        assert!(gpu.converged && gpu.error <= 1e-5, "{name}: gpu error {:.2e} ({})", gpu.error, gpu.stop_reason);
+        common::check_solution(p, &gpu.r, 1e-4).unwrap_or_else(|e| panic!("{name}: {e}"));
+        // Same local velocities as the CPU answer, within the f32 floor, on the problem's scale.
+        let scale = cpu.u.iter().chain(&p.q).fold(1e-12f64, |m, x| m.max(x.abs()));
+        let du = cpu.u.iter().zip(&gpu.u).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(du <= 1e-3 * scale, "{name}: |u_gpu − u_cpu| = {du:.2e} of {scale:.2e}");
+    }
+    // Starting from the converged f32 answer costs almost nothing.
+    let p = &cases[1].1;
+    let first = moreau::gpu::solve(&ctx, p, SolverKind::Jacobi, &opts, None).unwrap();
+    let again = moreau::gpu::solve(&ctx, p, SolverKind::Jacobi, &opts, Some(&first.r)).unwrap();
+    assert!(again.converged && again.iterations <= 16, "warm start took {} iterations", again.iterations);
+    let _ = to_f32_pairs(&[0.0, 0.0]);
+}
+
+#[test]
+fn a_solver_the_gpu_lacks_is_a_clear_error() {
+    let Some(ctx) = context() else { return };
+    let p = random_small(2, 0.3, 1);
+    let e = moreau::gpu::solve(&ctx, &p, SolverKind::Nlgs, &SolverOptions::default(), None).unwrap_err();
+    assert!(e.to_string().contains("no nlgs solver"), "{e}");
+}
