@@ -1,5 +1,6 @@
 //! The `moreau` command line.
 
+mod bench;
 mod run;
 
 use crate::io::report::{summary_line, SolveOutput};
@@ -89,6 +90,8 @@ enum Command {
     Run(run::RunArgs),
     /// Solve one frictional contact problem read from a file.
     Solve(SolveArgs),
+    /// CPU vs GPU timings (W product, Jacobi iteration) on lattice packings of growing size.
+    Bench(bench::BenchArgs),
     /// Write a built-in problem as a Siconos fc2d file.
     Generate {
         #[arg(value_enum)]
@@ -128,6 +131,7 @@ fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Run(args) => run::run_command(args),
         Command::Solve(args) => solve_command(args),
+        Command::Bench(args) => bench::bench_command(args),
         Command::Generate { kind, out, n, mass_ratio, nx, ny, mu, seed, storage } => {
             if !(mu.is_finite() && mu >= 0.0) {
                 bail!("--mu {mu}: the friction coefficient must be finite and >= 0");

@@ -9,6 +9,7 @@ pub mod kernels;
 pub mod layout;
 pub mod operator;
 pub mod stages;
+pub mod timing;
 
 pub use context::{GpuContext, GpuError};
 

@@ -1,0 +1,56 @@
+//! Timings of the GPU kernels without read-backs: `n` products or `n` Jacobi iterations recorded
+//! in one submit, waited for, divided by `n`. Used by `moreau bench` and the criterion benches.
+//! On the software adapter these numbers describe lavapipe, not a GPU.
+
+use std::time::Instant;
+
+use super::context::{GpuContext, GpuError};
+use super::kernels::{bind, groups, storage, Kernels};
+use super::layout::to_f32_pairs;
+use super::operator::GpuOperator;
+use crate::problem::{ContactProblem, Delassus};
+
+/// Seconds per `W` product and per projected-Jacobi iteration (product + update).
+pub struct KernelTimes {
+    pub product: f64,
+    pub jacobi_iteration: f64,
+}
+
+fn run(ctx: &GpuContext, n: usize, mut record: impl FnMut(&mut wgpu::ComputePass)) -> Result<f64, GpuError> {
+    let start = Instant::now();
+    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("timing") });
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("timing"), timestamp_writes: None });
+        for _ in 0..n {
+            record(&mut pass);
+        }
+    }
+    ctx.queue.submit([encoder.finish()]);
+    ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Runtime(e.to_string()))?;
+    Ok(start.elapsed().as_secs_f64() / n as f64)
+}
+
+pub fn kernel_times(ctx: &GpuContext, p: &ContactProblem, n: usize) -> Result<KernelTimes, GpuError> {
+    let nc = p.n_contacts();
+    let (rotation, friction) = match &p.w {
+        Delassus::MatrixFree(op) => (op.dofs().rotation, op.dofs().friction),
+        Delassus::Sparse(_) => (true, true),
+    };
+    let kernels = Kernels::new(ctx, rotation, friction);
+    let r = storage(ctx, "r", &vec![[0.0f32; 2]; nc]);
+    let q = storage(ctx, "q", &to_f32_pairs(&p.q));
+    let u = storage(ctx, "u", &vec![[0.0f32; 2]; nc]);
+    let mu = storage(ctx, "mu", &p.mu.iter().map(|&m| m as f32).collect::<Vec<_>>());
+    let step = storage(ctx, "step", &p.w.diag_blocks().iter().map(|d| (1.0 / (d[0] + d[3])) as f32).collect::<Vec<_>>());
+    let op = GpuOperator::new(ctx, &kernels, &p.w, &r, &q, &u);
+    let update = bind(ctx, &kernels.jacobi_update, &[&u, &mu, &step, &r]);
+    run(ctx, 3, |pass| op.record(&kernels, pass))?; // warm-up: pipeline creation, first-use costs
+    let product = run(ctx, n, |pass| op.record(&kernels, pass))?;
+    let jacobi_iteration = run(ctx, n, |pass| {
+        op.record(&kernels, pass);
+        pass.set_pipeline(&kernels.jacobi_update);
+        pass.set_bind_group(0, &update, &[]);
+        pass.dispatch_workgroups(groups(nc), 1, 1);
+    })?;
+    Ok(KernelTimes { product, jacobi_iteration })
+}
