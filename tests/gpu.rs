@@ -145,3 +145,67 @@ fn a_solver_the_gpu_lacks_is_a_clear_error() {
     let e = moreau::gpu::solve(&ctx, &p, SolverKind::Nlgs, &SolverOptions::default(), None).unwrap_err();
     assert!(e.to_string().contains("no nlgs solver"), "{e}");
 }
+
+/// A scene stepped with its solves on the GPU.
+fn gpu_simulation(ctx: GpuContext, toml: &str) -> (moreau::stepping::Simulation, usize) {
+    let s = moreau::scene::parse(toml, Path::new("gpu_scene.toml")).unwrap();
+    let steps = s.steps;
+    let mut sim = moreau::stepping::Simulation::new(s.world, s.settings).unwrap();
+    sim.use_gpu(ctx).unwrap();
+    (sim, steps)
+}
+
+#[test]
+fn scenes_stepped_on_the_gpu_keep_the_cpu_physics_checks() {
+    let Some(ctx) = context() else { return };
+    // A block on a 30° incline with μ = 0.3 slides at g (sin θ − μ cos θ), within 1 %.
+    let t = 30f64.to_radians();
+    let (dir, n) = ((t.cos(), -t.sin()), (t.sin(), t.cos()));
+    let incline = format!(
+        r#"
+effects = ["gravity", "friction"]
+[time]
+step = 1e-3
+steps = 300
+[solver]
+name = "jacobi"
+tol = 1e-6
+[contact]
+friction = 0.3
+[[material]]
+name = "m"
+density = 1000.0
+[[wall]]
+segment = [[0.0, 0.0], [{}, {}]]
+[[body]]
+disk = {{ center = [{}, {}], radius = 0.1 }}
+"#,
+        20.0 * dir.0,
+        20.0 * dir.1,
+        2.0 * dir.0 + 0.1 * n.0,
+        2.0 * dir.1 + 0.1 * n.1
+    );
+    let (mut sim, steps) = gpu_simulation(ctx, &incline);
+    for _ in 0..steps {
+        let r = sim.step().unwrap();
+        assert!(r.converged, "step {}: {}", r.step, r.stop_reason);
+    }
+    let a = (sim.velocity(0).x * dir.0 + sim.velocity(0).y * dir.1) / sim.time();
+    let expected = 9.81 * (t.sin() - 0.3 * t.cos());
+    assert!((a - expected).abs() <= 0.01 * expected, "a = {a}, expected {expected}");
+    // A column of five disks stays at rest.
+    let Some(ctx) = context() else { return };
+    let mut column = String::from(
+        "effects = [\"gravity\", \"friction\", \"rotation\"]\n[time]\nstep = 1e-3\nsteps = 200\n[solver]\nname = \"jacobi\"\ntol = 1e-6\n[contact]\nfriction = 0.5\n[[material]]\nname = \"m\"\ndensity = 1.0\n[[wall]]\nsegment = [[-2.0, 0.0], [2.0, 0.0]]\n",
+    );
+    for k in 0..5 {
+        column.push_str(&format!("[[body]]\ndisk = {{ center = [0.0, {}], radius = 0.5 }}\n", 0.5 + k as f64));
+    }
+    let (mut sim, steps) = gpu_simulation(ctx, &column);
+    let top = sim.position(4);
+    for _ in 0..steps {
+        let r = sim.step().unwrap();
+        assert!(r.converged && r.max_penetration < 1e-6, "{r:?}");
+    }
+    assert!(sim.position(4).distance(top) < 1e-6, "the column moved by {}", sim.position(4).distance(top));
+}

@@ -6,7 +6,7 @@ use std::time::Duration;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::DeviceChoice;
+use super::{resolve_device, Device, DeviceChoice};
 use crate::io::run_output::{RunOutput, RunSummary};
 use crate::io::siconos::{write_fc2d, Storage};
 use crate::scene;
@@ -51,15 +51,6 @@ pub struct RunArgs {
 const WARNINGS_SHOWN: usize = 5;
 
 pub fn run_command(a: RunArgs) -> Result<()> {
-    // Simulations run their solves on the CPU for now; `moreau solve` has the GPU path.
-    let device = match a.device {
-        DeviceChoice::Gpu => bail!("--device gpu: moreau run does not use the GPU path yet (moreau solve --device gpu --solver jacobi does)"),
-        DeviceChoice::Auto => {
-            eprintln!("device: cpu (moreau run does not use the GPU path yet)");
-            "cpu"
-        }
-        DeviceChoice::Cpu => "cpu",
-    };
     let mut scene = scene::load(&a.scene)?;
     for w in &scene.warnings {
         eprintln!("warning: {w}");
@@ -85,13 +76,17 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         }
         scene.settings.options.max_iter = m;
     }
+    let device = resolve_device(a.device, scene.settings.solver)?;
     let vtk_every = a.vtk_every.unwrap_or(if scene.output.vtk { scene.output.every.max(1) } else { 0 });
     let picture_step = a.picture_step.or(scene.output.picture_step).unwrap_or(scene.steps).min(scene.steps);
     let out_dir = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.name));
     let mut output = RunOutput::create(&out_dir)?;
     let mut summary = RunSummary {
         scene: scene.name.clone(),
-        device: device.to_string(),
+        device: match &device {
+            Device::Cpu => "cpu".to_string(),
+            Device::Gpu(ctx) => format!("gpu ({})", ctx.adapter_name()),
+        },
         solver: scene.settings.solver.name().to_string(),
         tol: scene.settings.options.tol,
         effects: scene.world.effects.names().iter().map(|s| s.to_string()).collect(),
@@ -112,6 +107,9 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         summary.tol
     );
     let mut sim = Simulation::new(scene.world, scene.settings)?;
+    if let Device::Gpu(ctx) = device {
+        sim.use_gpu(ctx)?;
+    }
     sim.keep_problems(!a.dump_problem.is_empty());
     let bar = if a.quiet { ProgressBar::hidden() } else { ProgressBar::new(steps as u64) };
     bar.set_style(

@@ -19,6 +19,8 @@ pub struct GpuContext {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
+    /// Compiled pipelines per specialisation (rotation, friction), built on first use.
+    kernels: std::sync::Mutex<Vec<((bool, bool), std::sync::Arc<super::kernels::Kernels>)>>,
 }
 
 impl GpuContext {
@@ -41,7 +43,18 @@ impl GpuContext {
             ..Default::default()
         }))
         .map_err(|e| GpuError::NoDevice { adapter: info.name.clone(), message: e.to_string() })?;
-        Ok(Self { device, queue, info })
+        Ok(Self { device, queue, info, kernels: Default::default() })
+    }
+
+    /// The pipelines for a problem with or without rotation and friction (compiled once).
+    pub fn kernels(&self, rotation: bool, friction: bool) -> std::sync::Arc<super::kernels::Kernels> {
+        let mut cache = self.kernels.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, k)) = cache.iter().find(|(key, _)| *key == (rotation, friction)) {
+            return k.clone();
+        }
+        let k = std::sync::Arc::new(super::kernels::Kernels::new(self, rotation, friction));
+        cache.push(((rotation, friction), k.clone()));
+        k
     }
 
     /// True for a software rasteriser such as lavapipe: correct, never fast.

@@ -7,7 +7,7 @@
 use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
-use super::kernels::{bind, groups, read_back, storage, Kernels};
+use super::kernels::{bind, groups, read_back, storage};
 use super::layout::{to_f32_pairs, to_f64};
 use super::operator::GpuOperator;
 use crate::problem::cone::project_cone;
@@ -26,7 +26,7 @@ pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Opt
         Delassus::MatrixFree(op) => (op.dofs().rotation, op.dofs().friction),
         Delassus::Sparse(_) => (true, true),
     };
-    let kernels = Kernels::new(ctx, rotation, friction);
+    let kernels = ctx.kernels(rotation, friction);
     let mut r: Vec<f64> = match r0 {
         Some(r) if r.len() == 2 * nc && r.iter().all(|x| x.is_finite()) => r.to_vec(),
         _ => vec![0.0; 2 * nc],

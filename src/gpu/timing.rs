@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
-use super::kernels::{bind, groups, storage, Kernels};
+use super::kernels::{bind, groups, storage};
 use super::layout::to_f32_pairs;
 use super::operator::GpuOperator;
 use crate::problem::{ContactProblem, Delassus};
@@ -36,7 +36,7 @@ pub fn kernel_times(ctx: &GpuContext, p: &ContactProblem, n: usize) -> Result<Ke
         Delassus::MatrixFree(op) => (op.dofs().rotation, op.dofs().friction),
         Delassus::Sparse(_) => (true, true),
     };
-    let kernels = Kernels::new(ctx, rotation, friction);
+    let kernels = ctx.kernels(rotation, friction);
     let r = storage(ctx, "r", &vec![[0.0f32; 2]; nc]);
     let q = storage(ctx, "q", &to_f32_pairs(&p.q));
     let u = storage(ctx, "u", &vec![[0.0f32; 2]; nc]);

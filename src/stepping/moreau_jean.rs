@@ -216,7 +216,11 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
             .map_err(|e| StepError::Problem { step, message: e.to_string() })?;
         // 4. Solve.
         let solve_start = Instant::now();
-        let solved = solve(&problem, sim.settings.solver, &sim.settings.options, Some(&r0));
+        let solved = match &sim.gpu {
+            Some(ctx) => crate::gpu::solve(ctx, &problem, sim.settings.solver, &sim.settings.options, Some(&r0))
+                .map_err(|e| StepError::Gpu { step, message: e.to_string() })?,
+            None => solve(&problem, sim.settings.solver, &sim.settings.options, Some(&r0)),
+        };
         report.solve_seconds = solve_start.elapsed().as_secs_f64();
         report.iterations = solved.iterations;
         report.error = solved.error;

@@ -84,6 +84,8 @@ pub enum StepError {
     Diverged { step: usize, message: String },
     #[error("step {step}: the contact problem is invalid: {message}")]
     Problem { step: usize, message: String },
+    #[error("step {step}: {message}")]
+    Gpu { step: usize, message: String },
 }
 
 pub struct Simulation {
@@ -96,6 +98,8 @@ pub struct Simulation {
     pub(super) warm_start: WarmStart,
     pub(super) keep_problem: bool,
     pub(super) last_problem: Option<ContactProblem>,
+    /// Solve each step on this GPU instead of the CPU.
+    pub(super) gpu: Option<crate::gpu::GpuContext>,
 }
 
 impl Simulation {
@@ -111,7 +115,22 @@ impl Simulation {
             warm_start: WarmStart::default(),
             keep_problem: false,
             last_problem: None,
+            gpu: None,
         })
+    }
+
+    /// Solves every step on `ctx` (the solver must exist on the GPU path).
+    pub fn use_gpu(&mut self, ctx: crate::gpu::GpuContext) -> Result<(), StepError> {
+        if !crate::gpu::supports(self.settings.solver) {
+            return Err(StepError::Settings(crate::gpu::GpuError::Unsupported(self.settings.solver.name().to_string()).to_string()));
+        }
+        self.gpu = Some(ctx);
+        Ok(())
+    }
+
+    /// The GPU that solves the steps, if any.
+    pub fn gpu(&self) -> Option<&crate::gpu::GpuContext> {
+        self.gpu.as_ref()
     }
 
     /// Adds a body; its density comes from its material.
