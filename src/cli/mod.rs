@@ -160,7 +160,7 @@ fn run(cli: Cli) -> Result<()> {
 /// Where a solve runs.
 pub(crate) enum Device {
     Cpu,
-    Gpu(crate::gpu::GpuContext),
+    Gpu(Box<crate::gpu::GpuContext>),
 }
 
 impl Device {
@@ -184,7 +184,7 @@ pub(crate) fn resolve_device(choice: DeviceChoice, solver: SolverKind) -> Result
             }
             let ctx = crate::gpu::GpuContext::new()?;
             eprintln!("device: gpu — {}", ctx.describe());
-            Ok(Device::Gpu(ctx))
+            Ok(Device::Gpu(Box::new(ctx)))
         }
         DeviceChoice::Auto => {
             if !crate::gpu::supports(solver) {
@@ -194,7 +194,7 @@ pub(crate) fn resolve_device(choice: DeviceChoice, solver: SolverKind) -> Result
             match crate::gpu::GpuContext::new() {
                 Ok(ctx) => {
                     eprintln!("device: gpu — {}", ctx.describe());
-                    Ok(Device::Gpu(ctx))
+                    Ok(Device::Gpu(Box::new(ctx)))
                 }
                 Err(e) => {
                     eprintln!("device: cpu ({e})");

@@ -108,7 +108,7 @@ pub fn run_command(a: RunArgs) -> Result<()> {
     );
     let mut sim = Simulation::new(scene.world, scene.settings)?;
     if let Device::Gpu(ctx) = device {
-        sim.use_gpu(ctx)?;
+        sim.use_gpu(*ctx)?;
     }
     sim.keep_problems(!a.dump_problem.is_empty());
     let bar = if a.quiet { ProgressBar::hidden() } else { ProgressBar::new(steps as u64) };

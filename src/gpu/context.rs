@@ -9,18 +9,21 @@ pub enum GpuError {
     NoAdapter(String),
     #[error("the adapter {adapter} refused a device: {message}")]
     NoDevice { adapter: String, message: String },
-    #[error("the GPU path has no {0} solver yet (it has: jacobi)")]
+    #[error("the GPU path has no {0} solver yet (it has: nlgs, jacobi)")]
     Unsupported(String),
     #[error("GPU: {0}")]
     Runtime(String),
 }
+
+/// Compiled pipelines of one specialisation: ((rotation, friction), kernels).
+type KernelCacheEntry = ((bool, bool), std::sync::Arc<super::kernels::Kernels>);
 
 pub struct GpuContext {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
     /// Compiled pipelines per specialisation (rotation, friction), built on first use.
-    kernels: std::sync::Mutex<Vec<((bool, bool), std::sync::Arc<super::kernels::Kernels>)>>,
+    kernels: std::sync::Mutex<Vec<KernelCacheEntry>>,
 }
 
 impl GpuContext {

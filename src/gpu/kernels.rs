@@ -28,7 +28,11 @@ pub struct Kernels {
     pub contact_gather: wgpu::ComputePipeline,
     pub bsr_product: wgpu::ComputePipeline,
     pub jacobi_update: wgpu::ComputePipeline,
+    pub nlgs_colour: wgpu::ComputePipeline,
+    pub nlgs_colour_bsr: wgpu::ComputePipeline,
 }
+
+const SINGLE_CONTACT: &str = include_str!("../../shaders/single_contact.wgsl");
 
 impl Kernels {
     pub fn new(ctx: &GpuContext, rotation: bool, friction: bool) -> Self {
@@ -38,6 +42,8 @@ impl Kernels {
             contact_gather: pipeline(ctx, "contact_gather", include_str!("../../shaders/contact_gather.wgsl"), &flags),
             bsr_product: pipeline(ctx, "bsr_product", include_str!("../../shaders/bsr_product.wgsl"), &[]),
             jacobi_update: pipeline(ctx, "jacobi_update", include_str!("../../shaders/jacobi_update.wgsl"), &[]),
+            nlgs_colour: pipeline(ctx, "nlgs_colour", &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/nlgs_colour.wgsl")), &flags),
+            nlgs_colour_bsr: pipeline(ctx, "nlgs_colour_bsr", &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/nlgs_colour_bsr.wgsl")), &[]),
         }
     }
 }
@@ -63,6 +69,15 @@ pub fn bind(ctx: &GpuContext, pipeline: &wgpu::ComputePipeline, buffers: &[&wgpu
     let entries: Vec<wgpu::BindGroupEntry> =
         buffers.iter().enumerate().map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() }).collect();
     ctx.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &pipeline.get_bind_group_layout(0), entries: &entries })
+}
+
+/// A small uniform buffer (colour ranges).
+pub fn uniform<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, data: &[T]) -> wgpu::Buffer {
+    ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: bytemuck::cast_slice(data),
+        usage: wgpu::BufferUsages::UNIFORM,
+    })
 }
 
 /// Workgroups to cover `n` items.

@@ -2,11 +2,14 @@
 //! mirror of the same name in [`cpu`]. Iterations stay on the GPU; the error of a result is
 //! always evaluated in f64 on the CPU with the core's measure.
 
+pub mod colouring;
 pub mod context;
 pub mod cpu;
+pub mod driver;
 pub mod jacobi;
 pub mod kernels;
 pub mod layout;
+pub mod nlgs;
 pub mod operator;
 pub mod stages;
 pub mod timing;
@@ -20,11 +23,12 @@ use crate::solvers::{SolveReport, SolverKind, SolverOptions};
 pub fn solve(ctx: &GpuContext, problem: &ContactProblem, kind: SolverKind, opts: &SolverOptions, r0: Option<&[f64]>) -> Result<SolveReport, GpuError> {
     match kind {
         SolverKind::Jacobi => jacobi::solve(ctx, problem, opts, r0),
+        SolverKind::Nlgs => nlgs::solve(ctx, problem, opts, r0),
         other => Err(GpuError::Unsupported(other.name().to_string())),
     }
 }
 
 /// Whether the GPU path has this solver.
 pub fn supports(kind: SolverKind) -> bool {
-    matches!(kind, SolverKind::Jacobi)
+    matches!(kind, SolverKind::Jacobi | SolverKind::Nlgs)
 }

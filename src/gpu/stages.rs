@@ -5,6 +5,9 @@ use super::context::{GpuContext, GpuError};
 use super::kernels::{bind, groups, read_back, storage, Kernels};
 use super::layout::{BsrLayout, MatrixFreeLayout};
 
+/// `r` (2 per contact) and `v` (4 per body) after a stage.
+pub type ImpulsesAndVelocities = (Vec<[f32; 2]>, Vec<[f32; 4]>);
+
 fn run(ctx: &GpuContext, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, n: usize) {
     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
     {
@@ -60,4 +63,69 @@ pub fn jacobi_update(ctx: &GpuContext, u: &[[f32; 2]], mu: &[f32], step: &[f32],
     let group = bind(ctx, &k.jacobi_update, &bufs.iter().collect::<Vec<_>>());
     run(ctx, &k.jacobi_update, &group, mu.len());
     read_back(ctx, &bufs[3], mu.len()).map_err(GpuError::Runtime)
+}
+
+/// One colour of the coloured NLGS sweep (matrix-free): returns the new `r` and `v`.
+#[allow(clippy::too_many_arguments)]
+pub fn nlgs_colour(
+    ctx: &GpuContext,
+    op: &MatrixFreeLayout,
+    diag: &[[f32; 4]],
+    q: &[[f32; 2]],
+    mu: &[f32],
+    colouring: &super::colouring::Colouring,
+    colour: usize,
+    r: &[[f32; 2]],
+    v: &[[f32; 4]],
+) -> Result<ImpulsesAndVelocities, GpuError> {
+    let k = Kernels::new(ctx, op.rotation, op.friction);
+    let count = colouring.start[colour + 1] - colouring.start[colour];
+    let range = super::kernels::uniform(ctx, "range", &[colouring.start[colour], count, 0, 0]);
+    let bufs = [
+        storage(ctx, "contacts", &op.contacts),
+        storage(ctx, "inv_mass", &op.inv_mass),
+        storage(ctx, "diag", diag),
+        storage(ctx, "q", q),
+        storage(ctx, "mu", mu),
+        storage(ctx, "order", &colouring.order),
+        storage(ctx, "r", r),
+        storage(ctx, "v", v),
+    ];
+    let mut all: Vec<&wgpu::Buffer> = bufs.iter().collect();
+    all.push(&range);
+    let group = bind(ctx, &k.nlgs_colour, &all);
+    run(ctx, &k.nlgs_colour, &group, count as usize);
+    Ok((read_back(ctx, &bufs[6], r.len()).map_err(GpuError::Runtime)?, read_back(ctx, &bufs[7], v.len()).map_err(GpuError::Runtime)?))
+}
+
+/// One colour of the coloured NLGS sweep on an explicit `W`: returns the new `r`.
+#[allow(clippy::too_many_arguments)]
+pub fn nlgs_colour_bsr(
+    ctx: &GpuContext,
+    w: &BsrLayout,
+    diag: &[[f32; 4]],
+    q: &[[f32; 2]],
+    mu: &[f32],
+    colouring: &super::colouring::Colouring,
+    colour: usize,
+    r: &[[f32; 2]],
+) -> Result<Vec<[f32; 2]>, GpuError> {
+    let k = Kernels::new(ctx, true, true);
+    let count = colouring.start[colour + 1] - colouring.start[colour];
+    let range = super::kernels::uniform(ctx, "range", &[colouring.start[colour], count, 0, 0]);
+    let bufs = [
+        storage(ctx, "row_ptr", &w.row_ptr),
+        storage(ctx, "cols", &w.cols),
+        storage(ctx, "blocks", &w.blocks),
+        storage(ctx, "diag", diag),
+        storage(ctx, "q", q),
+        storage(ctx, "mu", mu),
+        storage(ctx, "order", &colouring.order),
+        storage(ctx, "r", r),
+    ];
+    let mut all: Vec<&wgpu::Buffer> = bufs.iter().collect();
+    all.push(&range);
+    let group = bind(ctx, &k.nlgs_colour_bsr, &all);
+    run(ctx, &k.nlgs_colour_bsr, &group, count as usize);
+    read_back(ctx, &bufs[7], r.len()).map_err(GpuError::Runtime)
 }

@@ -66,7 +66,7 @@ pub fn write_step(sim: &Simulation, dir: &Path, index: usize) -> Result<[PathBuf
     }
     let extra = points.len() / 3 - n;
     let pad = |mut v: Vec<f64>, per: usize| {
-        v.extend(std::iter::repeat(0.0).take(extra * per));
+        v.extend(std::iter::repeat_n(0.0, extra * per));
         v
     };
     let velocity: Vec<f64> = (0..n).flat_map(|k| [b.velocity[k].x, b.velocity[k].y, 0.0]).collect();

@@ -3,7 +3,7 @@
 use crate::gpu::layout::{MatrixFreeLayout, J_SIDE};
 
 pub fn body_accumulate(op: &MatrixFreeLayout, r: &[[f32; 2]], v: &mut [[f32; 4]]) {
-    for k in 0..op.inv_mass.len() {
+    for (k, out) in v.iter_mut().enumerate().take(op.inv_mass.len()) {
         let (mut p, mut torque) = ([0.0f32; 2], 0.0f32);
         for &entry in &op.body_list[op.body_start[k] as usize..op.body_start[k + 1] as usize] {
             let a = (entry & !J_SIDE) as usize;
@@ -26,6 +26,6 @@ pub fn body_accumulate(op: &MatrixFreeLayout, r: &[[f32; 2]], v: &mut [[f32; 4]]
             }
         }
         let im = op.inv_mass[k];
-        v[k] = [im[0] * p[0], im[0] * p[1], im[1] * torque, 0.0];
+        *out = [im[0] * p[0], im[0] * p[1], im[1] * torque, 0.0];
     }
 }

@@ -5,3 +5,6 @@ pub mod body_accumulate;
 pub mod bsr_product;
 pub mod contact_gather;
 pub mod jacobi_update;
+pub mod nlgs_colour;
+pub mod nlgs_colour_bsr;
+pub mod single_contact;

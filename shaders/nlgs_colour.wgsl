@@ -1,0 +1,94 @@
+// One colour of a graph-coloured NLGS sweep on the matrix-free operator (notes §6.3): contacts of
+// one colour share no moving body, so they are solved in parallel with exact Gauss–Seidel
+// semantics. Each contact reads its velocity from the body velocities v = M⁻¹ Bᵀ r, solves its
+// single-contact problem and scatters its impulse change into v (no two writers per body).
+// Prepended with single_contact.wgsl. CPU mirror: src/gpu/cpu/nlgs_colour.rs
+
+override ROTATION: bool = true;
+override FRICTION: bool = true;
+
+struct Contact {
+    n: vec2<f32>,
+    i: u32,
+    j: u32,
+    levers: vec4<f32>,
+}
+
+struct Range {
+    start: u32,
+    count: u32,
+}
+
+@group(0) @binding(0) var<storage, read> contacts: array<Contact>;
+@group(0) @binding(1) var<storage, read> inv_mass: array<vec2<f32>>;
+@group(0) @binding(2) var<storage, read> diag: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> q: array<vec2<f32>>;
+@group(0) @binding(4) var<storage, read> mu: array<f32>;
+@group(0) @binding(5) var<storage, read> order: array<u32>;
+@group(0) @binding(6) var<storage, read_write> r: array<vec2<f32>>;
+@group(0) @binding(7) var<storage, read_write> v: array<vec4<f32>>;
+@group(0) @binding(8) var<uniform> range: Range;
+
+fn scatter(k: u32, s: f32, f: vec2<f32>, torque: f32) {
+    let im = inv_mass[k];
+    if (im.x == 0.0 && im.y == 0.0) {
+        return; // a fixed body: several contacts of one colour may touch it
+    }
+    var dv = v[k];
+    dv = vec4<f32>(dv.xy + s * im.x * f, dv.z + s * im.y * torque, 0.0);
+    v[k] = dv;
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (gid.x >= range.count) {
+        return;
+    }
+    let a = order[range.start + gid.x];
+    let c = contacts[a];
+    let t = vec2<f32>(-c.n.y, c.n.x);
+    let vi = v[c.i];
+    var dv = vi.xy;
+    var wj = 0.0;
+    if (c.j != 0xffffffffu) {
+        let vj = v[c.j];
+        dv = dv - vj.xy;
+        wj = vj.z;
+    }
+    var un = dot(c.n, dv);
+    var ut = 0.0;
+    if (FRICTION) {
+        ut = dot(t, dv);
+    }
+    if (ROTATION) {
+        un = un + c.levers.x * vi.z - c.levers.z * wj;
+        if (FRICTION) {
+            ut = ut + c.levers.y * vi.z - c.levers.w * wj;
+        }
+    }
+    let w = diag[a];
+    let ra = r[a];
+    let u = vec2<f32>(un, ut) + q[a];
+    let q_local = u - vec2<f32>(w.x * ra.x + w.y * ra.y, w.z * ra.x + w.w * ra.y);
+    let rn = solve_single_contact(w, q_local, mu[a]);
+    let d = rn - ra;
+    r[a] = rn;
+    var f = d.x * c.n;
+    if (FRICTION) {
+        f = f + d.y * t;
+    }
+    var ti = 0.0;
+    var tj = 0.0;
+    if (ROTATION) {
+        ti = d.x * c.levers.x;
+        tj = d.x * c.levers.z;
+        if (FRICTION) {
+            ti = ti + d.y * c.levers.y;
+            tj = tj + d.y * c.levers.w;
+        }
+    }
+    scatter(c.i, 1.0, f, ti);
+    if (c.j != 0xffffffffu) {
+        scatter(c.j, -1.0, f, tj);
+    }
+}

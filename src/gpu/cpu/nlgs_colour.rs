@@ -1,0 +1,73 @@
+//! Mirror of `shaders/nlgs_colour.wgsl`: one colour of a coloured NLGS sweep (matrix-free).
+//! Contacts of a colour are independent, so running them in order is the parallel result.
+
+use super::single_contact::solve_single_contact;
+use crate::gpu::layout::{MatrixFreeLayout, NO_ANTAGONIST};
+
+#[allow(clippy::too_many_arguments)]
+pub fn nlgs_colour(
+    op: &MatrixFreeLayout,
+    diag: &[[f32; 4]],
+    q: &[[f32; 2]],
+    mu: &[f32],
+    contacts_of_colour: &[u32],
+    r: &mut [[f32; 2]],
+    v: &mut [[f32; 4]],
+) {
+    for &a in contacts_of_colour {
+        let a = a as usize;
+        let c = &op.contacts[a];
+        let t = [-c.n[1], c.n[0]];
+        let vi = v[c.i as usize];
+        let mut dv = [vi[0], vi[1]];
+        let mut wj = 0.0f32;
+        if c.j != NO_ANTAGONIST {
+            let vj = v[c.j as usize];
+            dv = [dv[0] - vj[0], dv[1] - vj[1]];
+            wj = vj[2];
+        }
+        let mut un = c.n[0] * dv[0] + c.n[1] * dv[1];
+        let mut ut = 0.0f32;
+        if op.friction {
+            ut = t[0] * dv[0] + t[1] * dv[1];
+        }
+        if op.rotation {
+            un = un + c.levers[0] * vi[2] - c.levers[2] * wj;
+            if op.friction {
+                ut = ut + c.levers[1] * vi[2] - c.levers[3] * wj;
+            }
+        }
+        let w = diag[a];
+        let ra = r[a];
+        let u = [un + q[a][0], ut + q[a][1]];
+        let q_local = [u[0] - (w[0] * ra[0] + w[1] * ra[1]), u[1] - (w[2] * ra[0] + w[3] * ra[1])];
+        let rn = solve_single_contact(w, q_local, mu[a]);
+        let d = [rn[0] - ra[0], rn[1] - ra[1]];
+        r[a] = rn;
+        let mut f = [d[0] * c.n[0], d[0] * c.n[1]];
+        if op.friction {
+            f = [f[0] + d[1] * t[0], f[1] + d[1] * t[1]];
+        }
+        let (mut ti, mut tj) = (0.0f32, 0.0f32);
+        if op.rotation {
+            ti = d[0] * c.levers[0];
+            tj = d[0] * c.levers[2];
+            if op.friction {
+                ti += d[1] * c.levers[1];
+                tj += d[1] * c.levers[3];
+            }
+        }
+        let mut scatter = |k: usize, s: f32, torque: f32| {
+            let im = op.inv_mass[k];
+            if im[0] == 0.0 && im[1] == 0.0 {
+                return;
+            }
+            let x = v[k];
+            v[k] = [x[0] + s * im[0] * f[0], x[1] + s * im[0] * f[1], x[2] + s * im[1] * torque, 0.0];
+        };
+        scatter(c.i as usize, 1.0, ti);
+        if c.j != NO_ANTAGONIST {
+            scatter(c.j as usize, -1.0, tj);
+        }
+    }
+}
