@@ -167,7 +167,7 @@ fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
     let out = std::env::temp_dir().join(format!("moreau-run-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
     let status = Command::new(env!("CARGO_BIN_EXE_moreau"))
-        .args(["run", "scenes/pile.toml", "--steps", "40", "--vtk-every", "20", "--dump-problem", "30", "--quiet", "--out"])
+        .args(["run", "scenes/pile.toml", "--device", "cpu", "--steps", "40", "--vtk-every", "20", "--dump-problem", "30", "--quiet", "--out"])
         .arg(&out)
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .output()
