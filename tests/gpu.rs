@@ -205,6 +205,9 @@ fn a_solver_the_gpu_lacks_is_a_clear_error() {
     let p = random_small(2, 0.3, 1);
     let e = moreau::gpu::solve(&ctx, &p, SolverKind::Latin, &SolverOptions::default(), None).unwrap_err();
     assert!(e.to_string().contains("no latin solver"), "{e}");
+    let maxm = SolverOptions { criterion: moreau::solvers::StopCriterion::Maxm, ..SolverOptions::default() };
+    let e = moreau::gpu::solve(&ctx, &p, SolverKind::Nlgs, &maxm, None).unwrap_err();
+    assert!(e.to_string().contains("maxm"), "{e}");
 }
 
 /// A scene stepped with its solves on the GPU.

@@ -92,6 +92,7 @@ fn bad_scenes_get_errors_naming_line_and_field() {
     );
     assert_scene_error(&GOOD.replace("[[body]]\n", "[[body]]\nmaterial = \"steel\"\n"), 13, &["body[0].material", "steel"]);
     assert_scene_error(&format!("{GOOD}[solver]\nname = \"magic\"\n"), 15, &["solver.name", "magic", "nlgs"]);
+    assert_scene_error(&format!("{GOOD}[solver]\ncriterion = \"loose\"\n"), 15, &["solver.criterion", "loose", "maxm"]);
     assert_scene_error(&GOOD.replace("[time]", "[time"), 3, &[]);
     // Generators that cannot fit say so.
     let crowded = format!(

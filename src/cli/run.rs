@@ -28,6 +28,9 @@ pub struct RunArgs {
     tol: Option<f64>,
     #[arg(long)]
     max_iter: Option<usize>,
+    /// Stopping test of every solve (default: the scene's, else natural).
+    #[arg(long, value_enum)]
+    criterion: Option<crate::solvers::StopCriterion>,
     #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
     device: DeviceChoice,
     /// Output directory (default: out/<scene name>).
@@ -69,6 +72,9 @@ pub fn run_command(a: RunArgs) -> Result<()> {
             bail!("--tol {t}: must be finite and > 0");
         }
         scene.settings.options.tol = t;
+    }
+    if let Some(c) = a.criterion {
+        scene.settings.options.criterion = c;
     }
     if let Some(m) = a.max_iter {
         if m == 0 {

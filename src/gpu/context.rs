@@ -13,6 +13,8 @@ pub enum GpuError {
     Unsupported(String),
     #[error("GPU: {0}")]
     Runtime(String),
+    #[error("the GPU path stops on the natural-map error only, not on LMGC90's {0} criterion")]
+    Criterion(String),
 }
 
 /// Compiled pipelines of one specialisation: ((rotation, friction), kernels).

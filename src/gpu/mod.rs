@@ -21,6 +21,9 @@ use crate::solvers::{SolveReport, SolverKind, SolverOptions};
 
 /// Solves `problem` on the GPU with `kind`, or says that the GPU path lacks that solver.
 pub fn solve(ctx: &GpuContext, problem: &ContactProblem, kind: SolverKind, opts: &SolverOptions, r0: Option<&[f64]>) -> Result<SolveReport, GpuError> {
+    if opts.criterion != crate::solvers::StopCriterion::Natural {
+        return Err(GpuError::Criterion(format!("{:?}", opts.criterion).to_lowercase()));
+    }
     match kind {
         SolverKind::Jacobi => jacobi::solve(ctx, problem, opts, r0),
         SolverKind::Nlgs => nlgs::solve(ctx, problem, opts, r0),

@@ -9,7 +9,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::{deposition, generate, line_of, OutputSettings, Scene, SceneError};
-use crate::solvers::{Ordering, SolverKind, SolverOptions};
+use crate::solvers::{Ordering, SolverKind, SolverOptions, StopCriterion};
 use crate::stepping::StepSettings;
 use crate::world::{BodySpec, Effect, Effects, Interaction, Materials, PolygonShape, Wall, WallShape, World};
 
@@ -57,6 +57,8 @@ struct SolverSpec {
     max_iter: Option<usize>,
     ordering: Option<String>,
     omega: Option<f64>,
+    /// natural (default), quad, maxm, qm16 (LMGC90's tests).
+    criterion: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -549,6 +551,10 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         options.tol = s.tol.unwrap_or(options.tol);
         options.max_iter = s.max_iter.unwrap_or(options.max_iter);
         options.omega = s.omega.unwrap_or(1.0);
+        if let Some(c) = &s.criterion {
+            options.criterion = StopCriterion::from_str(c, true)
+                .or_else(|_| cx.err(solver_span.clone(), "solver.criterion", format!("unknown criterion {c:?} (natural, quad, maxm, qm16)")))?;
+        }
         if let Some(o) = &s.ordering {
             options.ordering = Ordering::from_str(o, true)
                 .or_else(|_| cx.err(solver_span.clone(), "solver.ordering", format!("unknown ordering {o:?}")))?;
