@@ -174,9 +174,10 @@ fn gpu_solvers_solve_what_the_cpu_solves() {
             cases.push((f.into(), moreau::io::siconos::read_fc2d(&path).unwrap()));
         }
     }
-    for ((name, p), kind) in cases.iter().flat_map(|c| [(c, SolverKind::Nlgs), (c, SolverKind::Jacobi)]) {
-        if kind == SolverKind::Jacobi && p.n_contacts() > 1500 {
-            continue; // Jacobi needs 10^4–10^5 iterations on the large granular files
+    let kinds = [SolverKind::Nlgs, SolverKind::Pcpg, SolverKind::Cpg, SolverKind::Jacobi];
+    for ((name, p), kind) in cases.iter().flat_map(|c| kinds.map(|k| (c, k))) {
+        if matches!(kind, SolverKind::Jacobi | SolverKind::Cpg) && p.n_contacts() > 1500 {
+            continue; // 10^4–10^5 iterations on the large granular files
         }
         let name = &format!("{name} ({})", kind.name());
         let cpu = solve(p, kind, &opts, None);
@@ -272,4 +273,83 @@ disk = {{ center = [{}, {}], radius = 0.1 }}
         assert!(r.converged && r.max_penetration < 1e-6, "{r:?}");
     }
     assert!(sim.position(4).distance(top) < 1e-6, "the column moved by {}", sim.position(4).distance(top));
+}
+
+fn floats(bytes: &[u8]) -> Vec<f32> {
+    bytemuck::cast_slice::<u8, f32>(bytes).to_vec()
+}
+
+#[test]
+fn reductions_and_cpg_stages_match_their_mirrors() {
+    let Some(ctx) = context() else { return };
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(5);
+    use moreau::gpu::kernels::Kernels;
+    // Deterministic dot products, on sizes around the chunk boundaries.
+    for n in [1usize, 255, 1024, 1025, 5000, 70_000] {
+        let a: Vec<f32> = (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect();
+        let b: Vec<f32> = (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect();
+        let parts = cpu::reduce_dot::reduce_dot(&a, &b);
+        let len = [n as u32, 0, 0, 0];
+        let out = stages::run_raw(&ctx, |k: &Kernels| &k.reduce_dot, &[bytemuck::cast_slice(&a), bytemuck::cast_slice(&b), bytemuck::cast_slice(&vec![0.0f32; parts.len()])], &[bytemuck::cast_slice(&len)], parts.len() as u32, &[2]).unwrap();
+        let gpu_parts = floats(&out[0]);
+        let scale: f32 = a.iter().zip(&b).map(|(x, y)| (x * y).abs()).sum::<f32>().max(1.0);
+        for (g, c) in gpu_parts.iter().zip(&parts) {
+            assert!((g - c).abs() <= 1e-5 * scale, "reduce_dot n = {n}: {g} vs {c}");
+        }
+        let job = [parts.len() as u32, 3, 0, 0];
+        let out = stages::run_raw(&ctx, |k: &Kernels| &k.reduce_final, &[bytemuck::cast_slice(&parts), bytemuck::cast_slice(&[0.0f32; 8])], &[bytemuck::cast_slice(&job)], 1, &[1]).unwrap();
+        let total = floats(&out[0])[3];
+        let exact: f64 = a.iter().zip(&b).map(|(x, y)| *x as f64 * *y as f64).sum();
+        assert!((total - cpu::reduce_final::reduce_final(&parts)).abs() <= 1e-5 * scale, "reduce_final n = {n}");
+        assert!((total as f64 - exact).abs() <= 1e-5 * scale as f64, "dot n = {n}: {total} vs {exact}");
+        // The same inputs give the same bits: the reduction does not depend on scheduling.
+        let again = stages::run_raw(&ctx, |k: &Kernels| &k.reduce_dot, &[bytemuck::cast_slice(&a), bytemuck::cast_slice(&b), bytemuck::cast_slice(&vec![0.0f32; parts.len()])], &[bytemuck::cast_slice(&len)], parts.len() as u32, &[2]).unwrap();
+        assert_eq!(floats(&again[0]), gpu_parts);
+    }
+    // The CPG stages on random states, every status and sign.
+    let nc = 3000;
+    let pair = |rng: &mut rand::rngs::SmallRng| [rng.gen_range(-1.0f32..1.0), if rng.gen_bool(0.2) { 0.0 } else { rng.gen_range(-1.0f32..1.0) }];
+    let r: Vec<[f32; 2]> = (0..nc).map(|_| pair(&mut rng)).collect();
+    let d: Vec<[f32; 2]> = (0..nc).map(|_| pair(&mut rng)).collect();
+    let u: Vec<[f32; 2]> = (0..nc).map(|_| pair(&mut rng)).collect();
+    let w0: Vec<[f32; 2]> = (0..nc).map(|_| pair(&mut rng)).collect();
+    let scale: Vec<[f32; 2]> = (0..nc).map(|_| [rng.gen_range(0.5..2.0), rng.gen_range(0.0..2.0)]).collect();
+    let mu: Vec<f32> = (0..nc).map(|k| if k % 7 == 0 { 0.0 } else { rng.gen_range(0.1..1.0) }).collect();
+    let status: Vec<u32> = (0..nc).map(|k| (k % 4) as u32).collect();
+    let mut scalars = [0.0f32; 16];
+    scalars[6] = 0.7; // α
+    scalars[7] = -0.3; // β
+    scalars[8] = 1.0; // restart
+    let g = (nc as u32).div_ceil(64);
+    let b = |x: &[[f32; 2]]| bytemuck::cast_slice::<[f32; 2], u8>(x).to_vec();
+    let out = stages::run_raw(&ctx, |k: &Kernels| &k.cpg_update, &[bytemuck::cast_slice(&scalars), &b(&d), bytemuck::cast_slice(&mu), &b(&r), bytemuck::cast_slice(&status), bytemuck::cast_slice(&vec![0.0f32; nc])], &[], g, &[3, 4, 5]).unwrap();
+    let (mut r_cpu, mut st_cpu, mut ch_cpu) = (r.clone(), status.clone(), vec![0.0f32; nc]);
+    cpu::cpg_update::cpg_update(&scalars, &d, &mu, &mut r_cpu, &mut st_cpu, &mut ch_cpu);
+    assert_close(&floats(&out[0]), r_cpu.as_flattened(), "cpg_update r");
+    assert_eq!(bytemuck::cast_slice::<u8, u32>(&out[1]), &st_cpu[..], "cpg_update status");
+    assert_eq!(floats(&out[2]), ch_cpu, "cpg_update changed");
+    let out = stages::run_raw(&ctx, |k: &Kernels| &k.cpg_gradient, &[&b(&u), &b(&scale), &b(&d), bytemuck::cast_slice(&status), bytemuck::cast_slice(&mu), &b(&w0), &b(&w0)], &[], g, &[5, 6]).unwrap();
+    let (mut w_cpu, mut z_cpu) = (w0.clone(), w0.clone());
+    cpu::cpg_gradient::cpg_gradient(&u, &scale, &d, &status, &mu, &mut w_cpu, &mut z_cpu);
+    assert_close(&floats(&out[0]), w_cpu.as_flattened(), "cpg_gradient w");
+    assert_close(&floats(&out[1]), z_cpu.as_flattened(), "cpg_gradient z");
+    let out = stages::run_raw(&ctx, |k: &Kernels| &k.cpg_direction, &[bytemuck::cast_slice(&scalars), &b(&w0), &b(&u), &b(&d)], &[], g, &[3]).unwrap();
+    let mut d_cpu = d.clone();
+    cpu::cpg_direction::cpg_direction(&scalars, &w0, &u, &mut d_cpu);
+    assert_close(&floats(&out[0]), d_cpu.as_flattened(), "cpg_direction");
+    let out = stages::run_raw(&ctx, |k: &Kernels| &k.cpg_restart, &[bytemuck::cast_slice(&scalars), &b(&w0), &b(&d)], &[], g, &[2]).unwrap();
+    let mut d_cpu = d.clone();
+    cpu::cpg_restart::cpg_restart(&scalars, &w0, &mut d_cpu);
+    assert_close(&floats(&out[0]), d_cpu.as_flattened(), "cpg_restart");
+    for stage in 0..3u32 {
+        let mut s = [0.0f32; 16];
+        for (k, x) in s.iter_mut().enumerate().take(9) {
+            *x = rng.gen_range(-1.0..1.0) + k as f32 * 0.0;
+        }
+        s[3] = if stage == 2 && rng.gen_bool(0.5) { 1.0 } else { 0.0 };
+        let out = stages::run_raw(&ctx, |k: &Kernels| &k.cpg_scalars, &[bytemuck::cast_slice(&s)], &[bytemuck::cast_slice(&[stage, 0, 0, 0])], 1, &[0]).unwrap();
+        let mut s_cpu = s;
+        cpu::cpg_scalars::cpg_scalars(&mut s_cpu, stage);
+        assert_close(&floats(&out[0]), &s_cpu, &format!("cpg_scalars stage {stage}"));
+    }
 }

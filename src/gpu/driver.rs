@@ -42,6 +42,7 @@ pub fn iterate(
     start: Instant,
     mut r: Vec<f64>,
     r_buf: &wgpu::Buffer,
+    products_per_iteration: usize,
     record: impl Fn(&mut wgpu::ComputePass),
 ) -> Result<SolveReport, GpuError> {
     let nc = p.n_contacts();
@@ -82,7 +83,7 @@ pub fn iterate(
             break;
         }
         error = error_of(p, &r).0;
-        history.push(HistoryPoint { iteration: iterations, seconds: start.elapsed().as_secs_f64(), w_products: iterations, error });
+        history.push(HistoryPoint { iteration: iterations, seconds: start.elapsed().as_secs_f64(), w_products: products_per_iteration * iterations + 1, error });
         if error < 0.99 * mark {
             (mark, improved_at) = (error, iterations);
         }
@@ -107,7 +108,7 @@ pub fn iterate(
         iterations,
         error,
         seconds: start.elapsed().as_secs_f64(),
-        w_products: iterations + 1,
+        w_products: products_per_iteration * iterations + 1,
         history,
         stop_reason,
         r,

@@ -29,7 +29,7 @@ pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Opt
     let step_buf = storage(ctx, "step", &step);
     let op = GpuOperator::new(ctx, &kernels, &p.w, &r_buf, &q_buf, &u_buf);
     let update = bind(ctx, &kernels.jacobi_update, &[&u_buf, &mu_buf, &step_buf, &r_buf]);
-    iterate(ctx, p, opts, SolverKind::Jacobi, start, r, &r_buf, |pass| {
+    iterate(ctx, p, opts, SolverKind::Jacobi, start, r, &r_buf, 1, |pass| {
         op.record(&kernels, pass);
         pass.set_pipeline(&kernels.jacobi_update);
         pass.set_bind_group(0, &update, &[]);

@@ -30,6 +30,13 @@ pub struct Kernels {
     pub jacobi_update: wgpu::ComputePipeline,
     pub nlgs_colour: wgpu::ComputePipeline,
     pub nlgs_colour_bsr: wgpu::ComputePipeline,
+    pub reduce_dot: wgpu::ComputePipeline,
+    pub reduce_final: wgpu::ComputePipeline,
+    pub cpg_scalars: wgpu::ComputePipeline,
+    pub cpg_restart: wgpu::ComputePipeline,
+    pub cpg_update: wgpu::ComputePipeline,
+    pub cpg_gradient: wgpu::ComputePipeline,
+    pub cpg_direction: wgpu::ComputePipeline,
 }
 
 const SINGLE_CONTACT: &str = include_str!("../../shaders/single_contact.wgsl");
@@ -44,6 +51,13 @@ impl Kernels {
             jacobi_update: pipeline(ctx, "jacobi_update", include_str!("../../shaders/jacobi_update.wgsl"), &[]),
             nlgs_colour: pipeline(ctx, "nlgs_colour", &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/nlgs_colour.wgsl")), &flags),
             nlgs_colour_bsr: pipeline(ctx, "nlgs_colour_bsr", &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/nlgs_colour_bsr.wgsl")), &[]),
+            reduce_dot: pipeline(ctx, "reduce_dot", include_str!("../../shaders/reduce_dot.wgsl"), &[]),
+            reduce_final: pipeline(ctx, "reduce_final", include_str!("../../shaders/reduce_final.wgsl"), &[]),
+            cpg_scalars: pipeline(ctx, "cpg_scalars", include_str!("../../shaders/cpg_scalars.wgsl"), &[]),
+            cpg_restart: pipeline(ctx, "cpg_restart", include_str!("../../shaders/cpg_restart.wgsl"), &[]),
+            cpg_update: pipeline(ctx, "cpg_update", include_str!("../../shaders/cpg_update.wgsl"), &[]),
+            cpg_gradient: pipeline(ctx, "cpg_gradient", include_str!("../../shaders/cpg_gradient.wgsl"), &[]),
+            cpg_direction: pipeline(ctx, "cpg_direction", include_str!("../../shaders/cpg_direction.wgsl"), &[]),
         }
     }
 }

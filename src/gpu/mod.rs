@@ -3,6 +3,7 @@
 //! always evaluated in f64 on the CPU with the core's measure.
 
 pub mod colouring;
+pub mod cpg;
 pub mod context;
 pub mod cpu;
 pub mod driver;
@@ -11,6 +12,7 @@ pub mod kernels;
 pub mod layout;
 pub mod nlgs;
 pub mod operator;
+pub mod reduce;
 pub mod stages;
 pub mod timing;
 
@@ -27,11 +29,13 @@ pub fn solve(ctx: &GpuContext, problem: &ContactProblem, kind: SolverKind, opts:
     match kind {
         SolverKind::Jacobi => jacobi::solve(ctx, problem, opts, r0),
         SolverKind::Nlgs => nlgs::solve(ctx, problem, opts, r0),
+        SolverKind::Cpg => cpg::solve(ctx, problem, opts, r0, false),
+        SolverKind::Pcpg => cpg::solve(ctx, problem, opts, r0, true),
         other => Err(GpuError::Unsupported(other.name().to_string())),
     }
 }
 
 /// Whether the GPU path has this solver.
 pub fn supports(kind: SolverKind) -> bool {
-    matches!(kind, SolverKind::Jacobi | SolverKind::Nlgs)
+    matches!(kind, SolverKind::Jacobi | SolverKind::Nlgs | SolverKind::Cpg | SolverKind::Pcpg)
 }

@@ -69,7 +69,7 @@ pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Opt
                     (bind(ctx, &kernels.nlgs_colour, &[&contacts, &inv_mass, &diag_buf, &q_buf, &mu_buf, &order, &r_buf, &v, &range]), count)
                 })
                 .collect();
-            iterate(ctx, p, opts, SolverKind::Nlgs, start, r, &r_buf, |pass| {
+            iterate(ctx, p, opts, SolverKind::Nlgs, start, r, &r_buf, 1, |pass| {
                 pass.set_pipeline(&kernels.nlgs_colour);
                 for (group, count) in &groups_per_colour {
                     pass.set_bind_group(0, group, &[]);
@@ -92,7 +92,7 @@ pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Opt
                 })
                 .collect();
             let _ = nc;
-            iterate(ctx, p, opts, SolverKind::Nlgs, start, r, &r_buf, |pass| {
+            iterate(ctx, p, opts, SolverKind::Nlgs, start, r, &r_buf, 1, |pass| {
                 pass.set_pipeline(&kernels.nlgs_colour_bsr);
                 for (group, count) in &groups_per_colour {
                     pass.set_bind_group(0, group, &[]);

@@ -129,3 +129,31 @@ pub fn nlgs_colour_bsr(
     run(ctx, &k.nlgs_colour_bsr, &group, count as usize);
     read_back(ctx, &bufs[7], r.len()).map_err(GpuError::Runtime)
 }
+
+/// Runs one kernel once on raw buffers (storage bindings first, then uniforms, in binding order)
+/// and returns the bytes of the storage buffers listed in `read`: for the tests of the small
+/// kernels (reductions, CPG stages) against their mirrors.
+pub fn run_raw(
+    ctx: &GpuContext,
+    pick: fn(&Kernels) -> &wgpu::ComputePipeline,
+    buffers: &[&[u8]],
+    uniforms: &[&[u8]],
+    workgroups: u32,
+    read: &[usize],
+) -> Result<Vec<Vec<u8>>, GpuError> {
+    let k = Kernels::new(ctx, true, true);
+    let pipeline = pick(&k);
+    let bufs: Vec<wgpu::Buffer> = buffers.iter().map(|b| storage(ctx, "raw", b)).collect();
+    let unis: Vec<wgpu::Buffer> = uniforms.iter().map(|u| super::kernels::uniform(ctx, "raw", u)).collect();
+    let all: Vec<&wgpu::Buffer> = bufs.iter().chain(unis.iter()).collect();
+    let group = bind(ctx, pipeline, &all);
+    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups(workgroups, 1, 1);
+    }
+    ctx.queue.submit([encoder.finish()]);
+    read.iter().map(|&i| read_back::<u8>(ctx, &bufs[i], buffers[i].len()).map_err(GpuError::Runtime)).collect()
+}

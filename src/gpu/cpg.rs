@@ -1,0 +1,115 @@
+//! CPG and PCPG on the GPU (Renouf & Alart, LMGC90's single loop, notes §4.2), with every scalar
+//! computed on the GPU: the dot products by deterministic reductions (`reduce.rs`), α and β by
+//! `cpg_scalars.wgsl`, so no value comes back to the CPU within an iteration. Per iteration:
+//! two products with W (W d and W r + q), five dot products, the box projection with status
+//! memory, the tangent-cone projections. The loop and its stopping rules are in `driver.rs`.
+
+use std::time::Instant;
+
+use super::context::{GpuContext, GpuError};
+use super::driver::{initial_impulses, iterate};
+use super::kernels::{bind, groups, storage, uniform};
+use super::layout::to_f32_pairs;
+use super::operator::GpuOperator;
+use super::reduce::{partials_len, Dot};
+use crate::problem::cone::{project_box, status_of, ContactStatus};
+use crate::problem::{ContactProblem, Delassus};
+use crate::solvers::{SolveReport, SolverKind, SolverOptions};
+
+fn status_code(s: ContactStatus) -> u32 {
+    match s {
+        ContactStatus::Open => 0,
+        ContactStatus::Stick => 1,
+        ContactStatus::SlidePositive => 2,
+        ContactStatus::SlideNegative => 3,
+    }
+}
+
+pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Option<&[f64]>, preconditioned: bool) -> Result<SolveReport, GpuError> {
+    let start = Instant::now();
+    let kind = if preconditioned { SolverKind::Pcpg } else { SolverKind::Cpg };
+    let nc = p.n_contacts();
+    let (rotation, friction) = match &p.w {
+        Delassus::MatrixFree(op) => (op.dofs().rotation, op.dofs().friction),
+        Delassus::Sparse(_) => (true, true),
+    };
+    let k = ctx.kernels(rotation, friction);
+    // Start on the box, as the CPU solver does (the driver's cone start is replaced here).
+    let mut r = initial_impulses(p, r0);
+    let mut status = vec![0u32; nc];
+    for a in 0..nc {
+        let ra = project_box([r[2 * a], r[2 * a + 1]], p.mu[a]);
+        r[2 * a] = ra[0];
+        r[2 * a + 1] = ra[1];
+        status[a] = status_code(status_of(ra, p.mu[a]));
+    }
+    let scale: Vec<[f32; 2]> = if preconditioned {
+        p.w.diag_blocks().iter().map(|d| [(1.0 / d[0]) as f32, if d[3] > 0.0 { (1.0 / d[3]) as f32 } else { 0.0 }]).collect()
+    } else {
+        vec![[1.0, 1.0]; nc]
+    };
+    let zeros = vec![[0.0f32; 2]; nc];
+    let r_buf = storage(ctx, "r", &to_f32_pairs(&r));
+    let q_buf = storage(ctx, "q", &to_f32_pairs(&p.q));
+    let zero_buf = storage(ctx, "zero", &zeros);
+    let u_buf = storage(ctx, "u", &zeros);
+    let d_buf = storage(ctx, "d", &zeros);
+    let y_buf = storage(ctx, "y", &zeros);
+    let w_buf = storage(ctx, "w", &zeros);
+    let z_buf = storage(ctx, "z", &zeros);
+    let status_buf = storage(ctx, "status", &status);
+    let changed_buf = storage(ctx, "changed", &vec![0.0f32; nc]);
+    let scale_buf = storage(ctx, "scale", &scale);
+    let mu_buf = storage(ctx, "mu", &p.mu.iter().map(|&m| m as f32).collect::<Vec<_>>());
+    let scalars = storage(ctx, "scalars", &[0.0f32; 16]);
+    let partials = storage(ctx, "partials", &vec![0.0f32; partials_len(2 * nc)]);
+    let residual = GpuOperator::new(ctx, &k, &p.w, &r_buf, &q_buf, &u_buf);
+    let product = GpuOperator::new(ctx, &k, &p.w, &d_buf, &zero_buf, &y_buf);
+    let n = 2 * nc;
+    let dot_ud = Dot::new(ctx, &k, &u_buf, &d_buf, n, &partials, &scalars, 0);
+    let dot_uw = Dot::new(ctx, &k, &u_buf, &w_buf, n, &partials, &scalars, 1);
+    let dot_dy = Dot::new(ctx, &k, &d_buf, &y_buf, n, &partials, &scalars, 2);
+    let dot_changed = Dot::new(ctx, &k, &changed_buf, &changed_buf, nc, &partials, &scalars, 3);
+    let dot_yw = Dot::new(ctx, &k, &y_buf, &w_buf, n, &partials, &scalars, 4);
+    let stages: Vec<(wgpu::BindGroup, wgpu::Buffer)> = (0..3u32)
+        .map(|s| {
+            let u = uniform(ctx, "stage", &[s, 0, 0, 0]);
+            (bind(ctx, &k.cpg_scalars, &[&scalars, &u]), u)
+        })
+        .collect();
+    let restart = bind(ctx, &k.cpg_restart, &[&scalars, &w_buf, &d_buf]);
+    let update = bind(ctx, &k.cpg_update, &[&scalars, &d_buf, &mu_buf, &r_buf, &status_buf, &changed_buf]);
+    let gradient = bind(ctx, &k.cpg_gradient, &[&u_buf, &scale_buf, &d_buf, &status_buf, &mu_buf, &w_buf, &z_buf]);
+    let direction = bind(ctx, &k.cpg_direction, &[&scalars, &w_buf, &z_buf, &d_buf]);
+    let g = groups(nc);
+    let run = |pass: &mut wgpu::ComputePass, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, n: u32| {
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, group, &[]);
+        pass.dispatch_workgroups(n, 1, 1);
+    };
+    // Start: u = W r + q, w = projected gradient, d = w (β = 0 in a fresh scalars buffer).
+    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cpg start") });
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
+        residual.record(&k, &mut pass);
+        run(&mut pass, &k.cpg_gradient, &gradient, g);
+        run(&mut pass, &k.cpg_direction, &direction, g);
+    }
+    ctx.queue.submit([encoder.finish()]);
+    iterate(ctx, p, opts, kind, start, r, &r_buf, 2, |pass| {
+        dot_ud.record(&k, pass);
+        dot_uw.record(&k, pass);
+        run(pass, &k.cpg_scalars, &stages[0].0, 1);
+        run(pass, &k.cpg_restart, &restart, g);
+        product.record(&k, pass);
+        dot_dy.record(&k, pass);
+        run(pass, &k.cpg_scalars, &stages[1].0, 1);
+        run(pass, &k.cpg_update, &update, g);
+        residual.record(&k, pass);
+        run(pass, &k.cpg_gradient, &gradient, g);
+        dot_changed.record(&k, pass);
+        dot_yw.record(&k, pass);
+        run(pass, &k.cpg_scalars, &stages[2].0, 1);
+        run(pass, &k.cpg_direction, &direction, g);
+    })
+}

@@ -1,0 +1,8 @@
+//! Mirror of `shaders/cpg_direction.wgsl`: d ← w + β z.
+
+pub fn cpg_direction(scalars: &[f32], w: &[[f32; 2]], z: &[[f32; 2]], d: &mut [[f32; 2]]) {
+    let beta = scalars[7];
+    for a in 0..w.len() {
+        d[a] = [w[a][0] + beta * z[a][0], w[a][1] + beta * z[a][1]];
+    }
+}

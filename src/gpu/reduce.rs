@@ -1,0 +1,41 @@
+//! Deterministic dot products on the GPU: `reduce_dot.wgsl` writes one partial sum per chunk of
+//! 1,024 entries, `reduce_final.wgsl` sums them into a slot of a scalars buffer. Fixed order
+//! throughout: the same inputs give the same bits on every run.
+
+use super::context::GpuContext;
+use super::cpu::reduce_dot::n_partials;
+use super::kernels::{bind, uniform, Kernels};
+
+/// A bound dot product `scalars[slot] = a · b` over `n` f32 entries.
+pub struct Dot {
+    first: wgpu::BindGroup,
+    second: wgpu::BindGroup,
+    groups: u32,
+    _uniforms: [wgpu::Buffer; 2],
+}
+
+impl Dot {
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(ctx: &GpuContext, k: &Kernels, a: &wgpu::Buffer, b: &wgpu::Buffer, n: usize, partials: &wgpu::Buffer, scalars: &wgpu::Buffer, slot: u32) -> Self {
+        let groups = n_partials(n) as u32;
+        let len = uniform(ctx, "len", &[n as u32, 0, 0, 0]);
+        let job = uniform(ctx, "job", &[groups, slot, 0, 0]);
+        let first = bind(ctx, &k.reduce_dot, &[a, b, partials, &len]);
+        let second = bind(ctx, &k.reduce_final, &[partials, scalars, &job]);
+        Self { first, second, groups, _uniforms: [len, job] }
+    }
+
+    pub fn record(&self, k: &Kernels, pass: &mut wgpu::ComputePass) {
+        pass.set_pipeline(&k.reduce_dot);
+        pass.set_bind_group(0, &self.first, &[]);
+        pass.dispatch_workgroups(self.groups, 1, 1);
+        pass.set_pipeline(&k.reduce_final);
+        pass.set_bind_group(0, &self.second, &[]);
+        pass.dispatch_workgroups(1, 1, 1);
+    }
+}
+
+/// Entries of the partials buffer needed for `n` entries.
+pub fn partials_len(n: usize) -> usize {
+    n_partials(n)
+}
