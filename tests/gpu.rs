@@ -174,9 +174,9 @@ fn gpu_solvers_solve_what_the_cpu_solves() {
             cases.push((f.into(), moreau::io::siconos::read_fc2d(&path).unwrap()));
         }
     }
-    let kinds = [SolverKind::Nlgs, SolverKind::Pcpg, SolverKind::Cpg, SolverKind::Jacobi];
+    let kinds = [SolverKind::Nlgs, SolverKind::Pcpg, SolverKind::Cpg, SolverKind::Jacobi, SolverKind::Apgd];
     for ((name, p), kind) in cases.iter().flat_map(|c| kinds.map(|k| (c, k))) {
-        if matches!(kind, SolverKind::Jacobi | SolverKind::Cpg) && p.n_contacts() > 1500 {
+        if matches!(kind, SolverKind::Jacobi | SolverKind::Cpg | SolverKind::Apgd) && p.n_contacts() > 1500 {
             continue; // 10^4–10^5 iterations on the large granular files
         }
         let name = &format!("{name} ({})", kind.name());
@@ -280,7 +280,7 @@ fn floats(bytes: &[u8]) -> Vec<f32> {
 }
 
 #[test]
-fn reductions_and_cpg_stages_match_their_mirrors() {
+fn reductions_cpg_and_apgd_stages_match_their_mirrors() {
     let Some(ctx) = context() else { return };
     let mut rng = rand::rngs::SmallRng::seed_from_u64(5);
     use moreau::gpu::kernels::Kernels;
@@ -341,6 +341,38 @@ fn reductions_and_cpg_stages_match_their_mirrors() {
     let mut d_cpu = d.clone();
     cpu::cpg_restart::cpg_restart(&scalars, &w0, &mut d_cpu);
     assert_close(&floats(&out[0]), d_cpu.as_flattened(), "cpg_restart");
+    // APGD stages.
+    let s_thr: Vec<f32> = (0..nc).map(|_| rng.gen_range(0.0..0.5)).collect();
+    let mut sc = [0.0f32; 8];
+    sc[4] = 0.8;
+    let out = stages::run_raw(&ctx, |k: &Kernels| &k.apgd_step, &[bytemuck::cast_slice(&sc), &b(&u), &b(&r), &b(&d), bytemuck::cast_slice(&s_thr), &b(&w0), &b(&w0)], &[], g, &[5, 6]).unwrap();
+    let (mut next, mut diff) = (w0.clone(), w0.clone());
+    cpu::apgd_step::apgd_step(&sc, &u, &r, &d, &s_thr, &mut next, &mut diff);
+    assert_close(&floats(&out[0]), next.as_flattened(), "apgd_step next");
+    assert_close(&floats(&out[1]), diff.as_flattened(), "apgd_step diff");
+    for (restart, theta) in [(0.3f32, 1.0f32), (-0.2, 0.6)] {
+        let mut sc = [0.0f32; 8];
+        (sc[0], sc[1]) = (restart, theta);
+        let out = stages::run_raw(&ctx, |k: &Kernels| &k.apgd_scalars, &[bytemuck::cast_slice(&sc)], &[], 1, &[0]).unwrap();
+        cpu::apgd_scalars::apgd_scalars(&mut sc);
+        assert_close(&floats(&out[0]), &sc, "apgd_scalars");
+    }
+    for restart in [0.0f32, 1.0] {
+        let mut sc = [0.0f32; 8];
+        (sc[2], sc[3]) = (0.4, restart);
+        let out = stages::run_raw(&ctx, |k: &Kernels| &k.apgd_momentum, &[bytemuck::cast_slice(&sc), &b(&u), &b(&d), &b(&r)], &[], g, &[2, 3]).unwrap();
+        let (mut gm, mut yy) = (d.clone(), r.clone());
+        cpu::apgd_momentum::apgd_momentum(&sc, &u, &mut gm, &mut yy);
+        assert_close(&floats(&out[0]), gm.as_flattened(), "apgd_momentum gamma");
+        assert_close(&floats(&out[1]), yy.as_flattened(), "apgd_momentum y");
+    }
+    let out = stages::run_raw(&ctx, |k: &Kernels| &k.apgd_rebox, &[bytemuck::cast_slice(&mu), &b(&r), &b(&d), bytemuck::cast_slice(&s_thr), bytemuck::cast_slice(&[0.0f32; 8])], &[], g, &[1, 2, 3, 4]).unwrap();
+    let (mut gm, mut yy, mut ss, mut sc) = (r.clone(), d.clone(), s_thr.clone(), [0.0f32; 8]);
+    cpu::apgd_rebox::apgd_rebox(&mu, &mut gm, &mut yy, &mut ss, &mut sc);
+    assert_close(&floats(&out[0]), gm.as_flattened(), "apgd_rebox gamma");
+    assert_close(&floats(&out[1]), yy.as_flattened(), "apgd_rebox y");
+    assert_close(&floats(&out[2]), &ss, "apgd_rebox s");
+    assert_close(&floats(&out[3]), &sc, "apgd_rebox scalars");
     for stage in 0..3u32 {
         let mut s = [0.0f32; 16];
         for (k, x) in s.iter_mut().enumerate().take(9) {

@@ -9,7 +9,7 @@ pub enum GpuError {
     NoAdapter(String),
     #[error("the adapter {adapter} refused a device: {message}")]
     NoDevice { adapter: String, message: String },
-    #[error("the GPU path has no {0} solver yet (it has: nlgs, cpg, pcpg, jacobi)")]
+    #[error("the GPU path has no {0} solver yet (it has: nlgs, cpg, pcpg, jacobi, apgd)")]
     Unsupported(String),
     #[error("GPU: {0}")]
     Runtime(String),

@@ -32,6 +32,14 @@ pub fn initial_impulses(p: &ContactProblem, r0: Option<&[f64]>) -> Vec<f64> {
     r
 }
 
+fn land_on_cone(p: &ContactProblem, r: &mut [f64]) {
+    for a in 0..p.n_contacts() {
+        let ra = project_cone([r[2 * a], r[2 * a + 1]], p.mu[a]);
+        r[2 * a] = ra[0];
+        r[2 * a + 1] = ra[1];
+    }
+}
+
 /// Runs `record(pass)` (one iteration) until a stop; `r_buf` holds the impulses.
 #[allow(clippy::too_many_arguments)]
 pub fn iterate(
@@ -78,6 +86,8 @@ pub fn iterate(
         ctx.queue.submit([encoder.finish()]);
         iterations += k;
         r = to_f64(&read_back::<[f32; 2]>(ctx, r_buf, nc).map_err(GpuError::Runtime)?);
+        // Judge what would be returned: f32 impulses (and APGD's lagging box) landed on the f64 cone.
+        land_on_cone(p, &mut r);
         if r.iter().any(|x| !x.is_finite()) {
             stop_reason = "diverged: non-finite impulses".to_string();
             break;
@@ -94,13 +104,7 @@ pub fn iterate(
         // Far from the tolerance, read back less often.
         batch = if error > 100.0 * opts.tol { (2 * batch).min(512) } else { 16 };
     }
-    let mut r = if error <= best { r } else { best_r };
-    // f32 impulses meet the f64 cone only to rounding: land them on it exactly.
-    for a in 0..nc {
-        let ra = project_cone([r[2 * a], r[2 * a + 1]], p.mu[a]);
-        r[2 * a] = ra[0];
-        r[2 * a + 1] = ra[1];
-    }
+    let r = if error <= best { r } else { best_r };
     let (error, u) = error_of(p, &r);
     Ok(SolveReport {
         solver: kind,

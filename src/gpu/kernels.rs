@@ -37,6 +37,10 @@ pub struct Kernels {
     pub cpg_update: wgpu::ComputePipeline,
     pub cpg_gradient: wgpu::ComputePipeline,
     pub cpg_direction: wgpu::ComputePipeline,
+    pub apgd_step: wgpu::ComputePipeline,
+    pub apgd_scalars: wgpu::ComputePipeline,
+    pub apgd_momentum: wgpu::ComputePipeline,
+    pub apgd_rebox: wgpu::ComputePipeline,
 }
 
 const SINGLE_CONTACT: &str = include_str!("../../shaders/single_contact.wgsl");
@@ -58,6 +62,10 @@ impl Kernels {
             cpg_update: pipeline(ctx, "cpg_update", include_str!("../../shaders/cpg_update.wgsl"), &[]),
             cpg_gradient: pipeline(ctx, "cpg_gradient", include_str!("../../shaders/cpg_gradient.wgsl"), &[]),
             cpg_direction: pipeline(ctx, "cpg_direction", include_str!("../../shaders/cpg_direction.wgsl"), &[]),
+            apgd_step: pipeline(ctx, "apgd_step", include_str!("../../shaders/apgd_step.wgsl"), &[]),
+            apgd_scalars: pipeline(ctx, "apgd_scalars", include_str!("../../shaders/apgd_scalars.wgsl"), &[]),
+            apgd_momentum: pipeline(ctx, "apgd_momentum", include_str!("../../shaders/apgd_momentum.wgsl"), &[]),
+            apgd_rebox: pipeline(ctx, "apgd_rebox", include_str!("../../shaders/apgd_rebox.wgsl"), &[]),
         }
     }
 }

@@ -2,6 +2,7 @@
 //! mirror of the same name in [`cpu`]. Iterations stay on the GPU; the error of a result is
 //! always evaluated in f64 on the CPU with the core's measure.
 
+pub mod apgd;
 pub mod colouring;
 pub mod cpg;
 pub mod context;
@@ -31,11 +32,12 @@ pub fn solve(ctx: &GpuContext, problem: &ContactProblem, kind: SolverKind, opts:
         SolverKind::Nlgs => nlgs::solve(ctx, problem, opts, r0),
         SolverKind::Cpg => cpg::solve(ctx, problem, opts, r0, false),
         SolverKind::Pcpg => cpg::solve(ctx, problem, opts, r0, true),
+        SolverKind::Apgd => apgd::solve(ctx, problem, opts, r0),
         other => Err(GpuError::Unsupported(other.name().to_string())),
     }
 }
 
 /// Whether the GPU path has this solver.
 pub fn supports(kind: SolverKind) -> bool {
-    matches!(kind, SolverKind::Jacobi | SolverKind::Nlgs | SolverKind::Cpg | SolverKind::Pcpg)
+    !matches!(kind, SolverKind::Latin)
 }

@@ -15,7 +15,8 @@ pub fn cpg_scalars(scalars: &mut [f32], stage: u32) {
         }
         _ => {
             let delta = scalars[2];
-            scalars[7] = if scalars[3] > 0.0 || !(delta > 0.0) { 0.0 } else { -scalars[4] / delta };
+            // delta ≤ 0 or NaN: no conjugation (as the kernel's `!(delta > 0.0)`).
+            scalars[7] = if scalars[3] > 0.0 || delta.is_nan() || delta <= 0.0 { 0.0 } else { -scalars[4] / delta };
         }
     }
 }

@@ -15,3 +15,7 @@ pub mod cpg_scalars;
 pub mod cpg_update;
 pub mod reduce_dot;
 pub mod reduce_final;
+pub mod apgd_momentum;
+pub mod apgd_rebox;
+pub mod apgd_scalars;
+pub mod apgd_step;
