@@ -1,23 +1,11 @@
 // Projected Jacobi update of every contact from u = W r + q (notes §6.2):
 // r ← Π_K(r − η (u_n + μ|u_t|, u_t)), De Saxcé's ũ so the fixed point is exact Coulomb.
-// CPU mirror: src/gpu/cpu/jacobi_update.rs
+// Prepended with single_contact.wgsl (its cone projection). CPU mirror: src/gpu/cpu/jacobi_update.rs
 
 @group(0) @binding(0) var<storage, read> u: array<vec2<f32>>;
 @group(0) @binding(1) var<storage, read> mu: array<f32>;
 @group(0) @binding(2) var<storage, read> step: array<f32>;
 @group(0) @binding(3) var<storage, read_write> r: array<vec2<f32>>;
-
-fn project_cone(x: vec2<f32>, m: f32) -> vec2<f32> {
-    // x.x >= 0 matters when μ = 0: then |x_t| ≤ μ x_n holds for x = (−1, 0).
-    if (x.x >= 0.0 && abs(x.y) <= m * x.x) {
-        return x;
-    }
-    if (m * abs(x.y) <= -x.x) {
-        return vec2<f32>(0.0, 0.0);
-    }
-    let rn = (x.x + m * abs(x.y)) / (1.0 + m * m);
-    return vec2<f32>(rn, sign(x.y) * m * rn);
-}
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -28,5 +16,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ua = u[a];
     let m = mu[a];
     let x = r[a] - step[a] * vec2<f32>(ua.x + m * abs(ua.y), ua.y);
-    r[a] = project_cone(x, m);
+    r[a] = sc_project_cone(x, m);
 }

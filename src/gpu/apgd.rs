@@ -14,7 +14,7 @@ use super::kernels::{bind, groups, storage};
 use super::layout::to_f32_pairs;
 use super::operator::GpuOperator;
 use super::reduce::{partials_len, Dot};
-use crate::problem::{norm, ContactProblem, Delassus};
+use crate::problem::{norm, ContactProblem};
 use crate::solvers::{SolveReport, SolverKind, SolverOptions};
 
 /// Largest eigenvalue of W by power iteration (Rayleigh quotient; converges from below).
@@ -36,10 +36,7 @@ pub fn largest_eigenvalue(p: &ContactProblem, iterations: usize) -> f64 {
 pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Option<&[f64]>) -> Result<SolveReport, GpuError> {
     let start = Instant::now();
     let nc = p.n_contacts();
-    let (rotation, friction) = match &p.w {
-        Delassus::MatrixFree(op) => (op.dofs().rotation, op.dofs().friction),
-        Delassus::Sparse(_) => (true, true),
-    };
+    let (rotation, friction) = super::specialisation(p);
     let k = ctx.kernels(rotation, friction);
     let mut r = initial_impulses(p, r0);
     let thresholds: Vec<f32> = (0..nc).map(|a| (p.mu[a] * r[2 * a].max(0.0)) as f32).collect();

@@ -13,7 +13,7 @@ use super::layout::to_f32_pairs;
 use super::operator::GpuOperator;
 use super::reduce::{partials_len, Dot};
 use crate::problem::cone::{project_box, status_of, ContactStatus};
-use crate::problem::{ContactProblem, Delassus};
+use crate::problem::ContactProblem;
 use crate::solvers::{SolveReport, SolverKind, SolverOptions};
 
 fn status_code(s: ContactStatus) -> u32 {
@@ -29,10 +29,7 @@ pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Opt
     let start = Instant::now();
     let kind = if preconditioned { SolverKind::Pcpg } else { SolverKind::Cpg };
     let nc = p.n_contacts();
-    let (rotation, friction) = match &p.w {
-        Delassus::MatrixFree(op) => (op.dofs().rotation, op.dofs().friction),
-        Delassus::Sparse(_) => (true, true),
-    };
+    let (rotation, friction) = super::specialisation(p);
     let k = ctx.kernels(rotation, friction);
     // Start on the box, as the CPU solver does (the driver's cone start is replaced here).
     let mut r = initial_impulses(p, r0);

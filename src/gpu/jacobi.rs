@@ -8,16 +8,13 @@ use super::driver::{initial_impulses, iterate};
 use super::kernels::{bind, groups, storage};
 use super::layout::to_f32_pairs;
 use super::operator::GpuOperator;
-use crate::problem::{ContactProblem, Delassus};
+use crate::problem::ContactProblem;
 use crate::solvers::{SolveReport, SolverKind, SolverOptions};
 
 pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Option<&[f64]>) -> Result<SolveReport, GpuError> {
     let start = Instant::now();
     let nc = p.n_contacts();
-    let (rotation, friction) = match &p.w {
-        Delassus::MatrixFree(op) => (op.dofs().rotation, op.dofs().friction),
-        Delassus::Sparse(_) => (true, true),
-    };
+    let (rotation, friction) = super::specialisation(p);
     let kernels = ctx.kernels(rotation, friction);
     let r = initial_impulses(p, r0);
     let step: Vec<f32> = p.w.diag_blocks().iter().map(|d| (opts.jacobi_omega * 2.0 / (d[0] + d[3])) as f32).collect();

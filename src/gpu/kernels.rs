@@ -52,7 +52,7 @@ impl Kernels {
             body_accumulate: pipeline(ctx, "body_accumulate", include_str!("../../shaders/body_accumulate.wgsl"), &flags),
             contact_gather: pipeline(ctx, "contact_gather", include_str!("../../shaders/contact_gather.wgsl"), &flags),
             bsr_product: pipeline(ctx, "bsr_product", include_str!("../../shaders/bsr_product.wgsl"), &[]),
-            jacobi_update: pipeline(ctx, "jacobi_update", include_str!("../../shaders/jacobi_update.wgsl"), &[]),
+            jacobi_update: pipeline(ctx, "jacobi_update", &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/jacobi_update.wgsl")), &[]),
             nlgs_colour: pipeline(ctx, "nlgs_colour", &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/nlgs_colour.wgsl")), &flags),
             nlgs_colour_bsr: pipeline(ctx, "nlgs_colour_bsr", &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/nlgs_colour_bsr.wgsl")), &[]),
             reduce_dot: pipeline(ctx, "reduce_dot", include_str!("../../shaders/reduce_dot.wgsl"), &[]),

@@ -37,6 +37,14 @@ pub fn solve(ctx: &GpuContext, problem: &ContactProblem, kind: SolverKind, opts:
     }
 }
 
+/// Which pipelines a problem needs: (rotation, friction). Explicit `W` uses the general ones.
+pub fn specialisation(p: &ContactProblem) -> (bool, bool) {
+    match &p.w {
+        crate::problem::Delassus::MatrixFree(op) => (op.dofs().rotation, op.dofs().friction),
+        crate::problem::Delassus::Sparse(_) => (true, true),
+    }
+}
+
 /// Whether the GPU path has this solver.
 pub fn supports(kind: SolverKind) -> bool {
     !matches!(kind, SolverKind::Latin)

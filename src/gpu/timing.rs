@@ -8,7 +8,7 @@ use super::context::{GpuContext, GpuError};
 use super::kernels::{bind, groups, storage};
 use super::layout::to_f32_pairs;
 use super::operator::GpuOperator;
-use crate::problem::{ContactProblem, Delassus};
+use crate::problem::ContactProblem;
 
 /// Seconds per `W` product and per projected-Jacobi iteration (product + update).
 pub struct KernelTimes {
@@ -32,10 +32,7 @@ fn run(ctx: &GpuContext, n: usize, mut record: impl FnMut(&mut wgpu::ComputePass
 
 pub fn kernel_times(ctx: &GpuContext, p: &ContactProblem, n: usize) -> Result<KernelTimes, GpuError> {
     let nc = p.n_contacts();
-    let (rotation, friction) = match &p.w {
-        Delassus::MatrixFree(op) => (op.dofs().rotation, op.dofs().friction),
-        Delassus::Sparse(_) => (true, true),
-    };
+    let (rotation, friction) = super::specialisation(p);
     let kernels = ctx.kernels(rotation, friction);
     let r = storage(ctx, "r", &vec![[0.0f32; 2]; nc]);
     let q = storage(ctx, "q", &to_f32_pairs(&p.q));

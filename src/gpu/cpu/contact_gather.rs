@@ -3,7 +3,16 @@
 use crate::gpu::layout::{MatrixFreeLayout, NO_ANTAGONIST};
 
 pub fn contact_gather(op: &MatrixFreeLayout, v: &[[f32; 4]], q: &[[f32; 2]], u: &mut [[f32; 2]]) {
-    for (a, c) in op.contacts.iter().enumerate() {
+    for a in 0..op.contacts.len() {
+        let [un, ut] = gather_one(op, v, a);
+        u[a] = [un + q[a][0], ut + q[a][1]];
+    }
+}
+
+/// `B_a v` for one contact, as the kernels compute it (shared with the NLGS mirror).
+pub(crate) fn gather_one(op: &MatrixFreeLayout, v: &[[f32; 4]], a: usize) -> [f32; 2] {
+    {
+        let c = &op.contacts[a];
         let vi = v[c.i as usize];
         let mut dv = [vi[0], vi[1]];
         let mut wj = 0.0f32;
@@ -23,6 +32,6 @@ pub fn contact_gather(op: &MatrixFreeLayout, v: &[[f32; 4]], q: &[[f32; 2]], u: 
                 ut = ut + c.levers[1] * vi[2] - c.levers[3] * wj;
             }
         }
-        u[a] = [un + q[a][0], ut + q[a][1]];
+        [un, ut]
     }
 }

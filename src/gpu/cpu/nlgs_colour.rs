@@ -1,6 +1,7 @@
 //! Mirror of `shaders/nlgs_colour.wgsl`: one colour of a coloured NLGS sweep (matrix-free).
 //! Contacts of a colour are independent, so running them in order is the parallel result.
 
+use super::contact_gather::gather_one;
 use super::single_contact::solve_single_contact;
 use crate::gpu::layout::{MatrixFreeLayout, NO_ANTAGONIST};
 
@@ -18,25 +19,7 @@ pub fn nlgs_colour(
         let a = a as usize;
         let c = &op.contacts[a];
         let t = [-c.n[1], c.n[0]];
-        let vi = v[c.i as usize];
-        let mut dv = [vi[0], vi[1]];
-        let mut wj = 0.0f32;
-        if c.j != NO_ANTAGONIST {
-            let vj = v[c.j as usize];
-            dv = [dv[0] - vj[0], dv[1] - vj[1]];
-            wj = vj[2];
-        }
-        let mut un = c.n[0] * dv[0] + c.n[1] * dv[1];
-        let mut ut = 0.0f32;
-        if op.friction {
-            ut = t[0] * dv[0] + t[1] * dv[1];
-        }
-        if op.rotation {
-            un = un + c.levers[0] * vi[2] - c.levers[2] * wj;
-            if op.friction {
-                ut = ut + c.levers[1] * vi[2] - c.levers[3] * wj;
-            }
-        }
+        let [un, ut] = gather_one(op, v, a);
         let w = diag[a];
         let ra = r[a];
         let u = [un + q[a][0], ut + q[a][1]];
