@@ -67,7 +67,9 @@ fn effects(c: &mut Criterion) {
         let mut out = vec![0.0; r.len()];
         group.bench_function(format!("w_product/{name}"), |b| b.iter(|| problem.w.apply(&r, &mut out)));
         let sweeps = SolverOptions { tol: 1e-300, max_iter: 10, ..SolverOptions::default() };
-        group.bench_function(format!("nlgs_10_sweeps/{name}"), |b| b.iter(|| solve(&problem, moreau::SolverKind::Nlgs, &sweeps, None)));
+        group.bench_function(format!("nlgs_10_sweeps/{name}"), |b| {
+            b.iter(|| solve(&problem, moreau::SolverKind::Nlgs, &sweeps, None))
+        });
         group.bench_function(format!("one_step/{name}"), |b| {
             b.iter_batched(
                 || Simulation::new(s.world.clone(), s.settings.clone()).unwrap(),

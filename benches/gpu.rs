@@ -1,5 +1,5 @@
 //! CPU vs GPU per W product and per projected-Jacobi iteration on lattice packings of 1k, 10k and
-//! 100k contacts (1M with MOREAU_BENCH_1M=1). GPU entries need an adapter; on the software
+//! 100k contacts (1M with MOREAU_BENCH_1M=1), and NLGS time to error 1e-4 at 1k and 10k. GPU entries need an adapter; on the software
 //! adapter they time lavapipe, not a GPU. `moreau bench` prints the same as a table.
 
 use std::time::Duration;
@@ -34,12 +34,30 @@ fn gpu_vs_cpu(c: &mut Criterion) {
                 jacobi_update(&mut rr, &u, &p.mu, &step);
             })
         });
+        // Time to error 1e-4 (cold start), NLGS on both devices: the sizes a sample finishes quickly.
+        let to_tol = moreau::SolverOptions { tol: 1e-4, max_iter: 100_000, ..Default::default() };
+        if nc <= 20_000 {
+            group.bench_function(format!("nlgs_to_1e-4/cpu/{nc}"), |b| {
+                b.iter(|| moreau::solve(&p, moreau::SolverKind::Nlgs, &to_tol, None))
+            });
+            if let Some(ctx) = &ctx {
+                group.bench_function(format!("nlgs_to_1e-4/gpu/{nc}"), |b| {
+                    b.iter(|| moreau::gpu::solve(ctx, &p, moreau::SolverKind::Nlgs, &to_tol, None).unwrap())
+                });
+            }
+        }
         if let Some(ctx) = &ctx {
             group.bench_function(format!("w_product/gpu/{nc}"), |b| {
-                b.iter_custom(|n| Duration::from_secs_f64(kernel_times(ctx, &p, n.max(1) as usize).unwrap().product * n as f64))
+                b.iter_custom(|n| {
+                    Duration::from_secs_f64(kernel_times(ctx, &p, n.max(1) as usize).unwrap().product * n as f64)
+                })
             });
             group.bench_function(format!("jacobi_iteration/gpu/{nc}"), |b| {
-                b.iter_custom(|n| Duration::from_secs_f64(kernel_times(ctx, &p, n.max(1) as usize).unwrap().jacobi_iteration * n as f64))
+                b.iter_custom(|n| {
+                    Duration::from_secs_f64(
+                        kernel_times(ctx, &p, n.max(1) as usize).unwrap().jacobi_iteration * n as f64,
+                    )
+                })
             });
         }
     }

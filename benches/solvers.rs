@@ -10,7 +10,8 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 fn bench(c: &mut Criterion) {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/siconos-fc2d/fc2d_granularflowonwall_07002_00801.dat");
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/siconos-fc2d/fc2d_granularflowonwall_07002_00801.dat");
     let Ok(problem) = read_fc2d(&path) else {
         eprintln!("skipping: {} not readable", path.display());
         return;
@@ -20,17 +21,27 @@ fn bench(c: &mut Criterion) {
     for kind in SolverKind::ALL {
         // tol = 0 is never reached: exactly 10 iterations.
         let opts = SolverOptions { tol: f64::MIN_POSITIVE, max_iter: 10, ..Default::default() };
-        per_iter.bench_with_input(BenchmarkId::from_parameter(kind), &kind, |b, &k| b.iter(|| solve(&problem, k, &opts, None)));
+        per_iter.bench_with_input(BenchmarkId::from_parameter(kind), &kind, |b, &k| {
+            b.iter(|| solve(&problem, k, &opts, None))
+        });
     }
     per_iter.finish();
 
     let mut to_tol = c.benchmark_group("7002_contacts/to_1e-6");
     to_tol.sample_size(10).measurement_time(Duration::from_secs(10));
     // LATIN and APGD do not reach 1e-6 on this file within 20,000 iterations (see the solve tests).
-    for (kind, ordering) in [(SolverKind::Nlgs, Ordering::Forward), (SolverKind::Nlgs, Ordering::Symmetric), (SolverKind::Pcpg, Ordering::Forward), (SolverKind::Cpg, Ordering::Forward), (SolverKind::Jacobi, Ordering::Forward)] {
+    for (kind, ordering) in [
+        (SolverKind::Nlgs, Ordering::Forward),
+        (SolverKind::Nlgs, Ordering::Symmetric),
+        (SolverKind::Pcpg, Ordering::Forward),
+        (SolverKind::Cpg, Ordering::Forward),
+        (SolverKind::Jacobi, Ordering::Forward),
+    ] {
         let opts = SolverOptions { tol: 1e-6, max_iter: 20_000, ordering, ..Default::default() };
         let id = if kind == SolverKind::Nlgs { format!("{kind}_{ordering:?}") } else { kind.to_string() };
-        to_tol.bench_with_input(BenchmarkId::from_parameter(id), &kind, |b, &k| b.iter(|| solve(&problem, k, &opts, None)));
+        to_tol.bench_with_input(BenchmarkId::from_parameter(id), &kind, |b, &k| {
+            b.iter(|| solve(&problem, k, &opts, None))
+        });
     }
     to_tol.finish();
 
@@ -40,7 +51,9 @@ fn bench(c: &mut Criterion) {
         let p = lattice_packing(side, side, 0.5, 1);
         let x = vec![1.0; 2 * p.n_contacts()];
         let mut y = vec![0.0; x.len()];
-        product.bench_with_input(BenchmarkId::from_parameter(p.n_contacts()), &side, |b, _| b.iter(|| p.w.apply(&x, &mut y)));
+        product.bench_with_input(BenchmarkId::from_parameter(p.n_contacts()), &side, |b, _| {
+            b.iter(|| p.w.apply(&x, &mut y))
+        });
     }
     product.finish();
 }

@@ -10,9 +10,11 @@ use moreau::world::{BodySpec, Effects, Interaction, Materials, Wall, World};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     // Effects are off unless switched on: here gravity, friction and rotation.
-    let effects = Effects { gravity: Some(DVec2::new(0.0, -9.81)), friction: true, rotation: true, ..Effects::default() };
+    let effects =
+        Effects { gravity: Some(DVec2::new(0.0, -9.81)), friction: true, rotation: true, ..Effects::default() };
     // One material (density 2500) whose pairs all have μ = 0.5.
-    let materials = Materials::new(vec!["grain".into()], vec![2500.0], Interaction { friction: 0.5, ..Interaction::default() });
+    let materials =
+        Materials::new(vec!["grain".into()], vec![2500.0], Interaction { friction: 0.5, ..Interaction::default() });
     let settings = StepSettings {
         h: 1e-3,
         theta: 0.5,
@@ -33,7 +35,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         // The host may add a body between steps: a square dropped on the column at step 200.
         if step == 200 {
-            let square = vec![DVec2::new(-0.01, -0.01), DVec2::new(0.01, -0.01), DVec2::new(0.01, 0.01), DVec2::new(-0.01, 0.01)];
+            let square = vec![
+                DVec2::new(-0.01, -0.01),
+                DVec2::new(0.01, -0.01),
+                DVec2::new(0.01, 0.01),
+                DVec2::new(-0.01, 0.01),
+            ];
             sim.add_body(&BodySpec::polygon(DVec2::new(0.0, 0.1), square, 0))?;
         }
     }
@@ -41,7 +48,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!("body {k}: position {:?}, velocity {:?}", sim.position(k).to_array(), sim.velocity(k).to_array());
     }
     for c in sim.contacts() {
-        println!("contact {} – {:?}: gap {:+.2e}, impulse (n, t) = ({:.3e}, {:.3e}), {:?}", c.contact.i, c.contact.other, c.contact.gap, c.impulse[0], c.impulse[1], c.status);
+        println!(
+            "contact {} – {:?}: gap {:+.2e}, impulse (n, t) = ({:.3e}, {:.3e}), {:?}",
+            c.contact.i, c.contact.other, c.contact.gap, c.impulse[0], c.impulse[1], c.status
+        );
     }
     Ok(())
 }

@@ -66,7 +66,13 @@ fn solve_command_writes_the_report_and_fails_cleanly_on_bad_input() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
 
     let json = dir.join("result.json");
-    let out = moreau().arg("solve").arg(&file).args(["--solver", "pcpg", "--device", "cpu", "--tol", "1e-8", "--out"]).arg(&json).output().unwrap();
+    let out = moreau()
+        .arg("solve")
+        .arg(&file)
+        .args(["--solver", "pcpg", "--device", "cpu", "--tol", "1e-8", "--out"])
+        .arg(&json)
+        .output()
+        .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(String::from_utf8_lossy(&out.stdout).contains("pcpg on cpu"));
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();

@@ -6,9 +6,9 @@ mod common;
 
 use std::path::Path;
 
+use moreau::gpu::colouring::Colouring;
 use moreau::gpu::cpu;
 use moreau::gpu::layout::{to_f32_pairs, BsrLayout, MatrixFreeLayout};
-use moreau::gpu::colouring::Colouring;
 use moreau::gpu::{stages, GpuContext};
 use moreau::problem::generate::{lattice_packing, random_small};
 use moreau::problem::{ContactProblem, Delassus};
@@ -106,7 +106,8 @@ fn every_kernel_matches_its_cpu_mirror() {
         assert!(colouring.n_colours() >= 2, "{name}: {} colours", colouring.n_colours());
         let (mut r_cpu, mut v_cpu) = (r.clone(), cpu_v.clone());
         for colour in 0..colouring.n_colours() {
-            let (r_gpu, v_gpu) = stages::nlgs_colour(&ctx, &layout, &diag, &q, &mu, &colouring, colour, &r_cpu, &v_cpu).unwrap();
+            let (r_gpu, v_gpu) =
+                stages::nlgs_colour(&ctx, &layout, &diag, &q, &mu, &colouring, colour, &r_cpu, &v_cpu).unwrap();
             cpu::nlgs_colour::nlgs_colour(&layout, &diag, &q, &mu, colouring.colour(colour), &mut r_cpu, &mut v_cpu);
             assert_close(r_gpu.as_flattened(), r_cpu.as_flattened(), &format!("{name}: nlgs_colour {colour} r"));
             assert_close(v_gpu.as_flattened(), v_cpu.as_flattened(), &format!("{name}: nlgs_colour {colour} v"));
@@ -164,7 +165,11 @@ fn gpu_solvers_solve_what_the_cpu_solves() {
         ("pile step 60".into(), pile_problem(r#""gravity", "friction", "rotation""#)),
         ("frictionless pile step 60".into(), pile_problem(r#""gravity""#)),
     ];
-    for f in ["FC2D_SliderCrankLagrangian00000.dat", "FC2D_SliderCrankLagrangian00001.dat", "fc2d_granularflowonwall_00667_00000.dat"] {
+    for f in [
+        "FC2D_SliderCrankLagrangian00000.dat",
+        "FC2D_SliderCrankLagrangian00001.dat",
+        "fc2d_granularflowonwall_00667_00000.dat",
+    ] {
         if let Some(path) = common::shared_data(f) {
             cases.push((f.into(), moreau::io::siconos::read_fc2d(&path).unwrap()));
         }
@@ -182,7 +187,10 @@ fn gpu_solvers_solve_what_the_cpu_solves() {
         let name = &format!("{name} ({})", kind.name());
         let cpu = solve(p, kind, &opts, None);
         let gpu = moreau::gpu::solve(&ctx, p, kind, &opts, None).unwrap();
-        eprintln!("{name}: cpu {} its error {:.2e}; gpu {} its error {:.2e} ({})", cpu.iterations, cpu.error, gpu.iterations, gpu.error, gpu.stop_reason);
+        eprintln!(
+            "{name}: cpu {} its error {:.2e}; gpu {} its error {:.2e} ({})",
+            cpu.iterations, cpu.error, gpu.iterations, gpu.error, gpu.stop_reason
+        );
         assert!(cpu.converged, "{name}: the CPU reference did not converge");
         // The f64 error of the f32 answer reaches 1e-5 (the GPU path's stated floor here).
         assert!(gpu.converged && gpu.error <= 1e-5, "{name}: gpu error {:.2e} ({})", gpu.error, gpu.stop_reason);
@@ -290,25 +298,51 @@ fn reductions_cpg_and_apgd_stages_match_their_mirrors() {
         let b: Vec<f32> = (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect();
         let parts = cpu::reduce_dot::reduce_dot(&a, &b);
         let len = [n as u32, 0, 0, 0];
-        let out = stages::run_raw(&ctx, |k: &Kernels| &k.reduce_dot, &[bytemuck::cast_slice(&a), bytemuck::cast_slice(&b), bytemuck::cast_slice(&vec![0.0f32; parts.len()])], &[bytemuck::cast_slice(&len)], parts.len() as u32, &[2]).unwrap();
+        let out = stages::run_raw(
+            &ctx,
+            |k: &Kernels| &k.reduce_dot,
+            &[bytemuck::cast_slice(&a), bytemuck::cast_slice(&b), bytemuck::cast_slice(&vec![0.0f32; parts.len()])],
+            &[bytemuck::cast_slice(&len)],
+            parts.len() as u32,
+            &[2],
+        )
+        .unwrap();
         let gpu_parts = floats(&out[0]);
         let scale: f32 = a.iter().zip(&b).map(|(x, y)| (x * y).abs()).sum::<f32>().max(1.0);
         for (g, c) in gpu_parts.iter().zip(&parts) {
             assert!((g - c).abs() <= 1e-5 * scale, "reduce_dot n = {n}: {g} vs {c}");
         }
         let job = [parts.len() as u32, 3, 0, 0];
-        let out = stages::run_raw(&ctx, |k: &Kernels| &k.reduce_final, &[bytemuck::cast_slice(&parts), bytemuck::cast_slice(&[0.0f32; 8])], &[bytemuck::cast_slice(&job)], 1, &[1]).unwrap();
+        let out = stages::run_raw(
+            &ctx,
+            |k: &Kernels| &k.reduce_final,
+            &[bytemuck::cast_slice(&parts), bytemuck::cast_slice(&[0.0f32; 8])],
+            &[bytemuck::cast_slice(&job)],
+            1,
+            &[1],
+        )
+        .unwrap();
         let total = floats(&out[0])[3];
         let exact: f64 = a.iter().zip(&b).map(|(x, y)| *x as f64 * *y as f64).sum();
         assert!((total - cpu::reduce_final::reduce_final(&parts)).abs() <= 1e-5 * scale, "reduce_final n = {n}");
         assert!((total as f64 - exact).abs() <= 1e-5 * scale as f64, "dot n = {n}: {total} vs {exact}");
         // The same inputs give the same bits: the reduction does not depend on scheduling.
-        let again = stages::run_raw(&ctx, |k: &Kernels| &k.reduce_dot, &[bytemuck::cast_slice(&a), bytemuck::cast_slice(&b), bytemuck::cast_slice(&vec![0.0f32; parts.len()])], &[bytemuck::cast_slice(&len)], parts.len() as u32, &[2]).unwrap();
+        let again = stages::run_raw(
+            &ctx,
+            |k: &Kernels| &k.reduce_dot,
+            &[bytemuck::cast_slice(&a), bytemuck::cast_slice(&b), bytemuck::cast_slice(&vec![0.0f32; parts.len()])],
+            &[bytemuck::cast_slice(&len)],
+            parts.len() as u32,
+            &[2],
+        )
+        .unwrap();
         assert_eq!(floats(&again[0]), gpu_parts);
     }
     // The CPG stages on random states, every status and sign.
     let nc = 3000;
-    let pair = |rng: &mut rand::rngs::SmallRng| [rng.gen_range(-1.0f32..1.0), if rng.gen_bool(0.2) { 0.0 } else { rng.gen_range(-1.0f32..1.0) }];
+    let pair = |rng: &mut rand::rngs::SmallRng| {
+        [rng.gen_range(-1.0f32..1.0), if rng.gen_bool(0.2) { 0.0 } else { rng.gen_range(-1.0f32..1.0) }]
+    };
     let r: Vec<[f32; 2]> = (0..nc).map(|_| pair(&mut rng)).collect();
     let d: Vec<[f32; 2]> = (0..nc).map(|_| pair(&mut rng)).collect();
     let u: Vec<[f32; 2]> = (0..nc).map(|_| pair(&mut rng)).collect();
@@ -322,22 +356,61 @@ fn reductions_cpg_and_apgd_stages_match_their_mirrors() {
     scalars[8] = 1.0; // restart
     let g = (nc as u32).div_ceil(64);
     let b = |x: &[[f32; 2]]| bytemuck::cast_slice::<[f32; 2], u8>(x).to_vec();
-    let out = stages::run_raw(&ctx, |k: &Kernels| &k.cpg_update, &[bytemuck::cast_slice(&scalars), &b(&d), bytemuck::cast_slice(&mu), &b(&r), bytemuck::cast_slice(&status), bytemuck::cast_slice(&vec![0.0f32; nc])], &[], g, &[3, 4, 5]).unwrap();
+    let out = stages::run_raw(
+        &ctx,
+        |k: &Kernels| &k.cpg_update,
+        &[
+            bytemuck::cast_slice(&scalars),
+            &b(&d),
+            bytemuck::cast_slice(&mu),
+            &b(&r),
+            bytemuck::cast_slice(&status),
+            bytemuck::cast_slice(&vec![0.0f32; nc]),
+        ],
+        &[],
+        g,
+        &[3, 4, 5],
+    )
+    .unwrap();
     let (mut r_cpu, mut st_cpu, mut ch_cpu) = (r.clone(), status.clone(), vec![0.0f32; nc]);
     cpu::cpg_update::cpg_update(&scalars, &d, &mu, &mut r_cpu, &mut st_cpu, &mut ch_cpu);
     assert_close(&floats(&out[0]), r_cpu.as_flattened(), "cpg_update r");
     assert_eq!(bytemuck::cast_slice::<u8, u32>(&out[1]), &st_cpu[..], "cpg_update status");
     assert_eq!(floats(&out[2]), ch_cpu, "cpg_update changed");
-    let out = stages::run_raw(&ctx, |k: &Kernels| &k.cpg_gradient, &[&b(&u), &b(&scale), &b(&d), bytemuck::cast_slice(&status), bytemuck::cast_slice(&mu), &b(&w0), &b(&w0)], &[], g, &[5, 6]).unwrap();
+    let out = stages::run_raw(
+        &ctx,
+        |k: &Kernels| &k.cpg_gradient,
+        &[&b(&u), &b(&scale), &b(&d), bytemuck::cast_slice(&status), bytemuck::cast_slice(&mu), &b(&w0), &b(&w0)],
+        &[],
+        g,
+        &[5, 6],
+    )
+    .unwrap();
     let (mut w_cpu, mut z_cpu) = (w0.clone(), w0.clone());
     cpu::cpg_gradient::cpg_gradient(&u, &scale, &d, &status, &mu, &mut w_cpu, &mut z_cpu);
     assert_close(&floats(&out[0]), w_cpu.as_flattened(), "cpg_gradient w");
     assert_close(&floats(&out[1]), z_cpu.as_flattened(), "cpg_gradient z");
-    let out = stages::run_raw(&ctx, |k: &Kernels| &k.cpg_direction, &[bytemuck::cast_slice(&scalars), &b(&w0), &b(&u), &b(&d)], &[], g, &[3]).unwrap();
+    let out = stages::run_raw(
+        &ctx,
+        |k: &Kernels| &k.cpg_direction,
+        &[bytemuck::cast_slice(&scalars), &b(&w0), &b(&u), &b(&d)],
+        &[],
+        g,
+        &[3],
+    )
+    .unwrap();
     let mut d_cpu = d.clone();
     cpu::cpg_direction::cpg_direction(&scalars, &w0, &u, &mut d_cpu);
     assert_close(&floats(&out[0]), d_cpu.as_flattened(), "cpg_direction");
-    let out = stages::run_raw(&ctx, |k: &Kernels| &k.cpg_restart, &[bytemuck::cast_slice(&scalars), &b(&w0), &b(&d)], &[], g, &[2]).unwrap();
+    let out = stages::run_raw(
+        &ctx,
+        |k: &Kernels| &k.cpg_restart,
+        &[bytemuck::cast_slice(&scalars), &b(&w0), &b(&d)],
+        &[],
+        g,
+        &[2],
+    )
+    .unwrap();
     let mut d_cpu = d.clone();
     cpu::cpg_restart::cpg_restart(&scalars, &w0, &mut d_cpu);
     assert_close(&floats(&out[0]), d_cpu.as_flattened(), "cpg_restart");
@@ -345,7 +418,15 @@ fn reductions_cpg_and_apgd_stages_match_their_mirrors() {
     let s_thr: Vec<f32> = (0..nc).map(|_| rng.gen_range(0.0..0.5)).collect();
     let mut sc = [0.0f32; 8];
     sc[4] = 0.8;
-    let out = stages::run_raw(&ctx, |k: &Kernels| &k.apgd_step, &[bytemuck::cast_slice(&sc), &b(&u), &b(&r), &b(&d), bytemuck::cast_slice(&s_thr), &b(&w0), &b(&w0)], &[], g, &[5, 6]).unwrap();
+    let out = stages::run_raw(
+        &ctx,
+        |k: &Kernels| &k.apgd_step,
+        &[bytemuck::cast_slice(&sc), &b(&u), &b(&r), &b(&d), bytemuck::cast_slice(&s_thr), &b(&w0), &b(&w0)],
+        &[],
+        g,
+        &[5, 6],
+    )
+    .unwrap();
     let (mut next, mut diff) = (w0.clone(), w0.clone());
     cpu::apgd_step::apgd_step(&sc, &u, &r, &d, &s_thr, &mut next, &mut diff);
     assert_close(&floats(&out[0]), next.as_flattened(), "apgd_step next");
@@ -353,20 +434,37 @@ fn reductions_cpg_and_apgd_stages_match_their_mirrors() {
     for (restart, theta) in [(0.3f32, 1.0f32), (-0.2, 0.6)] {
         let mut sc = [0.0f32; 8];
         (sc[0], sc[1]) = (restart, theta);
-        let out = stages::run_raw(&ctx, |k: &Kernels| &k.apgd_scalars, &[bytemuck::cast_slice(&sc)], &[], 1, &[0]).unwrap();
+        let out =
+            stages::run_raw(&ctx, |k: &Kernels| &k.apgd_scalars, &[bytemuck::cast_slice(&sc)], &[], 1, &[0]).unwrap();
         cpu::apgd_scalars::apgd_scalars(&mut sc);
         assert_close(&floats(&out[0]), &sc, "apgd_scalars");
     }
     for restart in [0.0f32, 1.0] {
         let mut sc = [0.0f32; 8];
         (sc[2], sc[3]) = (0.4, restart);
-        let out = stages::run_raw(&ctx, |k: &Kernels| &k.apgd_momentum, &[bytemuck::cast_slice(&sc), &b(&u), &b(&d), &b(&r)], &[], g, &[2, 3]).unwrap();
+        let out = stages::run_raw(
+            &ctx,
+            |k: &Kernels| &k.apgd_momentum,
+            &[bytemuck::cast_slice(&sc), &b(&u), &b(&d), &b(&r)],
+            &[],
+            g,
+            &[2, 3],
+        )
+        .unwrap();
         let (mut gm, mut yy) = (d.clone(), r.clone());
         cpu::apgd_momentum::apgd_momentum(&sc, &u, &mut gm, &mut yy);
         assert_close(&floats(&out[0]), gm.as_flattened(), "apgd_momentum gamma");
         assert_close(&floats(&out[1]), yy.as_flattened(), "apgd_momentum y");
     }
-    let out = stages::run_raw(&ctx, |k: &Kernels| &k.apgd_rebox, &[bytemuck::cast_slice(&mu), &b(&r), &b(&d), bytemuck::cast_slice(&s_thr), bytemuck::cast_slice(&[0.0f32; 8])], &[], g, &[1, 2, 3, 4]).unwrap();
+    let out = stages::run_raw(
+        &ctx,
+        |k: &Kernels| &k.apgd_rebox,
+        &[bytemuck::cast_slice(&mu), &b(&r), &b(&d), bytemuck::cast_slice(&s_thr), bytemuck::cast_slice(&[0.0f32; 8])],
+        &[],
+        g,
+        &[1, 2, 3, 4],
+    )
+    .unwrap();
     let (mut gm, mut yy, mut ss, mut sc) = (r.clone(), d.clone(), s_thr.clone(), [0.0f32; 8]);
     cpu::apgd_rebox::apgd_rebox(&mu, &mut gm, &mut yy, &mut ss, &mut sc);
     assert_close(&floats(&out[0]), gm.as_flattened(), "apgd_rebox gamma");
@@ -379,7 +477,15 @@ fn reductions_cpg_and_apgd_stages_match_their_mirrors() {
             *x = rng.gen_range(-1.0..1.0) + k as f32 * 0.0;
         }
         s[3] = if stage == 2 && rng.gen_bool(0.5) { 1.0 } else { 0.0 };
-        let out = stages::run_raw(&ctx, |k: &Kernels| &k.cpg_scalars, &[bytemuck::cast_slice(&s)], &[bytemuck::cast_slice(&[stage, 0, 0, 0])], 1, &[0]).unwrap();
+        let out = stages::run_raw(
+            &ctx,
+            |k: &Kernels| &k.cpg_scalars,
+            &[bytemuck::cast_slice(&s)],
+            &[bytemuck::cast_slice(&[stage, 0, 0, 0])],
+            1,
+            &[0],
+        )
+        .unwrap();
         let mut s_cpu = s;
         cpu::cpg_scalars::cpg_scalars(&mut s_cpu, stage);
         assert_close(&floats(&out[0]), &s_cpu, &format!("cpg_scalars stage {stage}"));

@@ -31,7 +31,16 @@ fn every_shipped_scene_builds_and_runs_a_few_steps() {
             names.push((path.file_stem().unwrap().to_string_lossy().into_owned(), n, sim.contacts().len()));
         }
     }
-    for required in ["pile", "box_compaction", "sandbox", "rotating_drum", "hopper", "column_collapse", "polygon_pile", "box_pyramid"] {
+    for required in [
+        "pile",
+        "box_compaction",
+        "sandbox",
+        "rotating_drum",
+        "hopper",
+        "column_collapse",
+        "polygon_pile",
+        "box_pyramid",
+    ] {
         assert!(names.iter().any(|(n, ..)| n == required), "scenes/{required}.toml is missing");
     }
     let (_, n, contacts) = names.iter().find(|(n, ..)| n == "sandbox").unwrap();
@@ -82,15 +91,30 @@ fn bad_scenes_get_errors_naming_line_and_field() {
     assert_scene_error(&GOOD.replace("radius = 0.1 }", "radius = 0.0 }"), 13, &["body[0]", "radius"]);
     assert_scene_error(&GOOD.replace("step = 1e-3", "step = -1e-3"), 3, &["time step"]);
     assert_scene_error(&GOOD.replace("steps = 10", "steps = 0"), 3, &["time.steps"]);
-    assert_scene_error(&GOOD.replace("[1.0, 0.0]]", "[1.0, 0.0]]\nvelocity = [1.0, 0.0]"), 11, &["wall[0].velocity", "moving_walls"]);
-    assert_scene_error(&GOOD.replace("\"friction\"]", "\"friction\", \"rolling_resistance\"]"), 2, &["rolling_resistance", "not implemented"]);
+    assert_scene_error(
+        &GOOD.replace("[1.0, 0.0]]", "[1.0, 0.0]]\nvelocity = [1.0, 0.0]"),
+        11,
+        &["wall[0].velocity", "moving_walls"],
+    );
+    assert_scene_error(
+        &GOOD.replace("\"friction\"]", "\"friction\", \"rolling_resistance\"]"),
+        2,
+        &["rolling_resistance", "not implemented"],
+    );
     assert_scene_error(&GOOD.replace("\"friction\"]", "\"frction\"]"), 2, &["frction"]);
     assert_scene_error(
-        &GOOD.replace("disk = { center = [0.5, 0.1], radius = 0.1 }", "polygon = { center = [0.5, 0.1], vertices = [[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]] }"),
+        &GOOD.replace(
+            "disk = { center = [0.5, 0.1], radius = 0.1 }",
+            "polygon = { center = [0.5, 0.1], vertices = [[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]] }",
+        ),
         13,
         &["body[0]", "degenerate polygon"],
     );
-    assert_scene_error(&GOOD.replace("[[body]]\n", "[[body]]\nmaterial = \"steel\"\n"), 13, &["body[0].material", "steel"]);
+    assert_scene_error(
+        &GOOD.replace("[[body]]\n", "[[body]]\nmaterial = \"steel\"\n"),
+        13,
+        &["body[0].material", "steel"],
+    );
     assert_scene_error(&format!("{GOOD}[solver]\nname = \"magic\"\n"), 15, &["solver.name", "magic", "nlgs"]);
     assert_scene_error(&format!("{GOOD}[solver]\ncriterion = \"loose\"\n"), 15, &["solver.criterion", "loose", "maxm"]);
     assert_scene_error(&GOOD.replace("[time]", "[time"), 3, &[]);
@@ -107,13 +131,19 @@ fn bad_scenes_get_errors_naming_line_and_field() {
 
 #[test]
 fn effects_that_are_off_allocate_nothing_and_add_no_rows() {
-    let with = scene::parse(&GOOD.replace("\"friction\"]", "\"friction\", \"rotation\"]"), Path::new("a.toml")).unwrap();
+    let with =
+        scene::parse(&GOOD.replace("\"friction\"]", "\"friction\", \"rotation\"]"), Path::new("a.toml")).unwrap();
     let without = scene::parse(GOOD, Path::new("b.toml")).unwrap();
     assert!(with.world.bodies.angle.len() == 1 && with.world.bodies.inertia.len() == 1);
-    assert!(without.world.bodies.angle.is_empty() && without.world.bodies.spin.is_empty() && without.world.bodies.inertia.is_empty());
+    assert!(
+        without.world.bodies.angle.is_empty()
+            && without.world.bodies.spin.is_empty()
+            && without.world.bodies.inertia.is_empty()
+    );
     assert!(without.world.bodies.memory_bytes() < with.world.bodies.memory_bytes());
     // A frictionless scene: tangential impulses stay exactly zero, the operator has no lever arms.
-    let frictionless = scene::parse(&GOOD.replace("\"gravity\", \"friction\"", "\"gravity\""), Path::new("c.toml")).unwrap();
+    let frictionless =
+        scene::parse(&GOOD.replace("\"gravity\", \"friction\"", "\"gravity\""), Path::new("c.toml")).unwrap();
     let mut sim = Simulation::new(frictionless.world, frictionless.settings).unwrap();
     sim.keep_problems(true);
     for _ in 0..120 {
@@ -168,7 +198,20 @@ fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
     let out = std::env::temp_dir().join(format!("moreau-run-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
     let status = Command::new(env!("CARGO_BIN_EXE_moreau"))
-        .args(["run", "scenes/pile.toml", "--device", "cpu", "--steps", "40", "--vtk-every", "20", "--dump-problem", "30", "--quiet", "--out"])
+        .args([
+            "run",
+            "scenes/pile.toml",
+            "--device",
+            "cpu",
+            "--steps",
+            "40",
+            "--vtk-every",
+            "20",
+            "--dump-problem",
+            "30",
+            "--quiet",
+            "--out",
+        ])
         .arg(&out)
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .output()
@@ -179,14 +222,25 @@ fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
     let csv = std::fs::read_to_string(out.join("steps.csv")).unwrap();
     let mut lines = csv.lines();
     let header = lines.next().unwrap();
-    for col in ["step", "time", "contacts", "iterations", "error", "converged", "max_penetration", "kinetic_energy", "seconds"] {
+    for col in
+        ["step", "time", "contacts", "iterations", "error", "converged", "max_penetration", "kinetic_energy", "seconds"]
+    {
         assert!(header.split(',').any(|c| c == col), "steps.csv lacks {col}: {header}");
     }
     assert_eq!(lines.count(), 40);
-    let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["steps"], 40);
     assert_eq!(summary["device"], "cpu");
-    for f in ["grains.pvd", "contacts.pvd", "walls.pvd", "grains_000020.vtu", "contacts_000040.vtu", "state_000040.png", "problem_000030.dat"] {
+    for f in [
+        "grains.pvd",
+        "contacts.pvd",
+        "walls.pvd",
+        "grains_000020.vtu",
+        "contacts_000040.vtu",
+        "state_000040.png",
+        "problem_000030.dat",
+    ] {
         assert!(out.join(f).exists(), "{f} missing");
     }
     let pvd = std::fs::read_to_string(out.join("grains.pvd")).unwrap();
@@ -196,7 +250,12 @@ fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
     // The dumped problem is a valid Siconos file that `moreau solve` solves.
     let problem = moreau::io::siconos::read_fc2d(&out.join("problem_000030.dat")).unwrap();
     assert!(problem.n_contacts() > 0);
-    let report = moreau::solve(&problem, moreau::SolverKind::Nlgs, &moreau::SolverOptions { tol: 1e-6, ..Default::default() }, None);
+    let report = moreau::solve(
+        &problem,
+        moreau::SolverKind::Nlgs,
+        &moreau::SolverOptions { tol: 1e-6, ..Default::default() },
+        None,
+    );
     assert!(report.converged, "{}", report.stop_reason);
     // A bad scene gives exit code 2 and names the file.
     let bad = out.join("bad.toml");

@@ -51,8 +51,12 @@ fn every_solver_converges_or_says_it_did_not() {
             assert_eq!(rep.converged, rep.error <= tol, "{file} {kind}: converged flag vs error {:e}", rep.error);
             assert!(rep.iterations <= 3_000 && rep.history.last().is_some());
             // Cone exactly, always; Signorini/Coulomb to the accuracy reached.
-            common::check_solution(&p, &rep.r, (100.0 * rep.error).max(1e-6)).unwrap_or_else(|e| panic!("{file} {kind}: {e}"));
-            eprintln!("{file} {kind}: converged {} iterations {} error {:.2e}", rep.converged, rep.iterations, rep.error);
+            common::check_solution(&p, &rep.r, (100.0 * rep.error).max(1e-6))
+                .unwrap_or_else(|e| panic!("{file} {kind}: {e}"));
+            eprintln!(
+                "{file} {kind}: converged {} iterations {} error {:.2e}",
+                rep.converged, rep.iterations, rep.error
+            );
         }
     }
 }

@@ -272,7 +272,12 @@ fn contacts_are_warm_started_from_the_previous_step() {
     }
     let last = last.unwrap();
     // Every contact that existed last step is carried; only contacts new this step start from zero.
-    assert!(last.contacts > 50 && last.warm_started * 100 >= 98 * last.contacts, "{} of {} warm-started", last.warm_started, last.contacts);
+    assert!(
+        last.contacts > 50 && last.warm_started * 100 >= 98 * last.contacts,
+        "{} of {} warm-started",
+        last.warm_started,
+        last.contacts
+    );
     // The same problem solved from zero takes several times more iterations.
     let cold = moreau::solve(sim.last_problem().unwrap(), sim.settings.solver, &sim.settings.options, None);
     assert!(last.converged, "warm-started step: {} its, error {:e}", last.iterations, last.error);

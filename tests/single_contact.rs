@@ -47,11 +47,15 @@ fn single_contact_matches_enumeration_in_every_case() {
         seen[status as usize] += 1;
         let u = [w[0] * r[0] + w[1] * r[1] + q[0], w[2] * r[0] + w[3] * r[1] + q[1]];
         let f = natural_map(r, u, mu);
-        assert!(f[0].hypot(f[1]) <= 1e-12 * (1.0 + r[0].abs() + r[1].abs()), "residual {f:?} for w={w:?} q={q:?} mu={mu}");
+        assert!(
+            f[0].hypot(f[1]) <= 1e-12 * (1.0 + r[0].abs() + r[1].abs()),
+            "residual {f:?} for w={w:?} q={q:?} mu={mu}"
+        );
         assert!(r[0] >= 0.0 && r[1].abs() <= mu * r[0], "r = {r:?} outside the cone");
         let all = enumerate(&w, q, mu);
         assert!(!all.is_empty(), "enumeration found no solution for w={w:?} q={q:?} mu={mu}");
-        let close = all.iter().any(|s| (s[0] - r[0]).abs() + (s[1] - r[1]).abs() <= 1e-9 * (1.0 + s[0].abs() + s[1].abs()));
+        let close =
+            all.iter().any(|s| (s[0] - r[0]).abs() + (s[1] - r[1]).abs() <= 1e-9 * (1.0 + s[0].abs() + s[1].abs()));
         assert!(close, "solve gave {r:?} ({status:?}), enumeration {all:?}");
     }
     // Every case was exercised.

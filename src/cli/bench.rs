@@ -45,7 +45,10 @@ pub fn bench_command(a: BenchArgs) -> Result<()> {
     if ctx.as_ref().is_some_and(|c| c.is_software()) {
         println!("(a software adapter: its column measures the CPU running lavapipe, not a GPU)");
     }
-    println!("| contacts | CPU W product | GPU W product | ratio | CPU Jacobi it | GPU Jacobi it | ratio |{}", if a.solve_to.is_some() { " CPU to tol | GPU to tol |" } else { "" });
+    println!(
+        "| contacts | CPU W product | GPU W product | ratio | CPU Jacobi it | GPU Jacobi it | ratio |{}",
+        if a.solve_to.is_some() { " CPU to tol | GPU to tol |" } else { "" }
+    );
     println!("|---|---|---|---|---|---|---|{}", if a.solve_to.is_some() { "---|---|" } else { "" });
     for &size in &a.sizes {
         let (nx, ny) = lattice_of(size);
@@ -72,18 +75,33 @@ pub fn bench_command(a: BenchArgs) -> Result<()> {
         };
         let fmt = |s: f64| format!("{:.1} µs", s * 1e6);
         let (gp, gi, rp, ri) = match &gpu {
-            Some(t) => (fmt(t.product), fmt(t.jacobi_iteration), format!("{:.2}x", cpu_product / t.product), format!("{:.2}x", cpu_iteration / t.jacobi_iteration)),
+            Some(t) => (
+                fmt(t.product),
+                fmt(t.jacobi_iteration),
+                format!("{:.2}x", cpu_product / t.product),
+                format!("{:.2}x", cpu_iteration / t.jacobi_iteration),
+            ),
             None => ("–".into(), "–".into(), "–".into(), "–".into()),
         };
         let mut row = format!("| {nc} | {} | {gp} | {rp} | {} | {gi} | {ri} |", fmt(cpu_product), fmt(cpu_iteration));
         if let Some(tol) = a.solve_to {
             let opts = SolverOptions { tol, max_iter: 1_000_000, ..SolverOptions::default() };
             let c = solve(&p, SolverKind::Jacobi, &opts, None);
-            row.push_str(&format!(" {:.3} s ({} its{}) |", c.seconds, c.iterations, if c.converged { "" } else { ", not converged" }));
+            row.push_str(&format!(
+                " {:.3} s ({} its{}) |",
+                c.seconds,
+                c.iterations,
+                if c.converged { "" } else { ", not converged" }
+            ));
             match &ctx {
                 Some(ctx) => {
                     let g = crate::gpu::solve(ctx, &p, SolverKind::Jacobi, &opts, None)?;
-                    row.push_str(&format!(" {:.3} s ({} its{}) |", g.seconds, g.iterations, if g.converged { "" } else { ", not converged" }));
+                    row.push_str(&format!(
+                        " {:.3} s ({} its{}) |",
+                        g.seconds,
+                        g.iterations,
+                        if g.converged { "" } else { ", not converged" }
+                    ));
                 }
                 None => row.push_str(" – |"),
             }

@@ -31,7 +31,8 @@ impl Grid {
         }
         let nx = (span.x / cell) as usize + 1;
         let ny = (span.y / cell) as usize + 1;
-        let coords = |p: DVec2| (((p.x - lo.x) / cell) as usize).min(nx - 1) + nx * (((p.y - lo.y) / cell) as usize).min(ny - 1);
+        let coords =
+            |p: DVec2| (((p.x - lo.x) / cell) as usize).min(nx - 1) + nx * (((p.y - lo.y) / cell) as usize).min(ny - 1);
         self.cell_start.clear();
         self.cell_start.resize(nx * ny + 1, 0);
         self.cell_of.clear();

@@ -79,7 +79,8 @@ impl Detector {
         self.grid.candidate_pairs(config.position, &self.radius, alert, &mut self.pairs);
         let mut out = Vec::with_capacity(self.pairs.len() + bodies.len() / 4);
         for &(i, j) in &self.pairs {
-            let pair_alert = alert + reach.get(i as usize).copied().unwrap_or(0.0) + reach.get(j as usize).copied().unwrap_or(0.0);
+            let pair_alert =
+                alert + reach.get(i as usize).copied().unwrap_or(0.0) + reach.get(j as usize).copied().unwrap_or(0.0);
             narrow_phase::body_body(bodies, config, i as usize, j as usize, pair_alert, &mut out);
         }
         let rmax = self.radius.iter().copied().fold(0.0, f64::max);

@@ -38,7 +38,14 @@ pub fn disk_segment(x: DVec2, r: f64, a: DVec2, b: DVec2) -> (f64, DVec2, DVec2)
 /// Contact of a disk (centre `x`, radius `r`) with a convex polygon posed at `xp`, angle `ap`,
 /// through parry2d, posed relative to the disk so that precision follows grain size.
 /// Returns (point, normal from the polygon to the disk, gap).
-fn disk_polygon(x: DVec2, r: f64, polygon: &ConvexPolygon, xp: DVec2, ap: f64, alert: f64) -> Option<(DVec2, DVec2, f64)> {
+fn disk_polygon(
+    x: DVec2,
+    r: f64,
+    polygon: &ConvexPolygon,
+    xp: DVec2,
+    ap: f64,
+    alert: f64,
+) -> Option<(DVec2, DVec2, f64)> {
     let pose_disk = Pose::new(Vec2::ZERO, 0.0);
     let pose_poly = Pose::new(v32(xp - x), ap as f32);
     let ball = Ball::new(r as f32);
@@ -57,7 +64,14 @@ fn v64(v: Vec2) -> DVec2 {
 }
 
 /// Contacts between bodies `i < j`.
-pub fn body_body(bodies: &Bodies, config: &Configuration, i: usize, j: usize, alert: f64, out: &mut Vec<DetectedContact>) {
+pub fn body_body(
+    bodies: &Bodies,
+    config: &Configuration,
+    i: usize,
+    j: usize,
+    alert: f64,
+    out: &mut Vec<DetectedContact>,
+) {
     let (xi, xj) = (config.position[i], config.position[j]);
     let push = |out: &mut Vec<DetectedContact>, feature: u64, point: DVec2, normal: DVec2, gap: f64| {
         out.push(DetectedContact { i, other: Antagonist::Body(j), feature, point, normal, gap })
@@ -71,12 +85,16 @@ pub fn body_body(bodies: &Bodies, config: &Configuration, i: usize, j: usize, al
         }
         _ if bodies.inv_mass[i] == 0.0 && bodies.inv_mass[j] == 0.0 => {}
         (BodyShape::Disk { radius }, BodyShape::Polygon(p)) => {
-            if let Some((point, normal, gap)) = disk_polygon(xi, radius, &bodies.polygons[p as usize].parry, xj, config.angle_of(j), alert) {
+            if let Some((point, normal, gap)) =
+                disk_polygon(xi, radius, &bodies.polygons[p as usize].parry, xj, config.angle_of(j), alert)
+            {
                 push(out, 0, point, normal, gap);
             }
         }
         (BodyShape::Polygon(p), BodyShape::Disk { radius }) => {
-            if let Some((point, normal, gap)) = disk_polygon(xj, radius, &bodies.polygons[p as usize].parry, xi, config.angle_of(i), alert) {
+            if let Some((point, normal, gap)) =
+                disk_polygon(xj, radius, &bodies.polygons[p as usize].parry, xi, config.angle_of(i), alert)
+            {
                 push(out, 0, point, -normal, gap);
             }
         }

@@ -33,7 +33,12 @@ pub fn largest_eigenvalue(p: &ContactProblem, iterations: usize) -> f64 {
     lambda
 }
 
-pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Option<&[f64]>) -> Result<SolveReport, GpuError> {
+pub fn solve(
+    ctx: &GpuContext,
+    p: &ContactProblem,
+    opts: &SolverOptions,
+    r0: Option<&[f64]>,
+) -> Result<SolveReport, GpuError> {
     let start = Instant::now();
     let nc = p.n_contacts();
     let (rotation, friction) = super::specialisation(p);

@@ -63,7 +63,9 @@ impl Colouring {
     pub fn matrix_free(op: &MatrixFreeLayout) -> Self {
         let moving = |k: u32| k != NO_ANTAGONIST && op.inv_mass[k as usize] != [0.0, 0.0];
         let body_contacts = |k: u32| {
-            op.body_list[op.body_start[k as usize] as usize..op.body_start[k as usize + 1] as usize].iter().map(|e| (e & !super::layout::J_SIDE) as usize)
+            op.body_list[op.body_start[k as usize] as usize..op.body_start[k as usize + 1] as usize]
+                .iter()
+                .map(|e| (e & !super::layout::J_SIDE) as usize)
         };
         Self::from_neighbours(op.contacts.len(), |a, out| {
             let c = &op.contacts[a];

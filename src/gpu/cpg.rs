@@ -25,7 +25,13 @@ fn status_code(s: ContactStatus) -> u32 {
     }
 }
 
-pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Option<&[f64]>, preconditioned: bool) -> Result<SolveReport, GpuError> {
+pub fn solve(
+    ctx: &GpuContext,
+    p: &ContactProblem,
+    opts: &SolverOptions,
+    r0: Option<&[f64]>,
+    preconditioned: bool,
+) -> Result<SolveReport, GpuError> {
     let start = Instant::now();
     let kind = if preconditioned { SolverKind::Pcpg } else { SolverKind::Cpg };
     let nc = p.n_contacts();
@@ -41,7 +47,10 @@ pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Opt
         status[a] = status_code(status_of(ra, p.mu[a]));
     }
     let scale: Vec<[f32; 2]> = if preconditioned {
-        p.w.diag_blocks().iter().map(|d| [(1.0 / d[0]) as f32, if d[3] > 0.0 { (1.0 / d[3]) as f32 } else { 0.0 }]).collect()
+        p.w.diag_blocks()
+            .iter()
+            .map(|d| [(1.0 / d[0]) as f32, if d[3] > 0.0 { (1.0 / d[3]) as f32 } else { 0.0 }])
+            .collect()
     } else {
         vec![[1.0, 1.0]; nc]
     };

@@ -76,9 +76,11 @@ pub fn iterate(
             break;
         }
         let k = batch.min(opts.max_iter - iterations);
-        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(kind.name()) });
+        let mut encoder =
+            ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(kind.name()) });
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(kind.name()), timestamp_writes: None });
+            let mut pass = encoder
+                .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(kind.name()), timestamp_writes: None });
             for _ in 0..k {
                 record(&mut pass);
             }
@@ -93,7 +95,12 @@ pub fn iterate(
             break;
         }
         error = error_of(p, &r).0;
-        history.push(HistoryPoint { iteration: iterations, seconds: start.elapsed().as_secs_f64(), w_products: products_per_iteration * iterations + 1, error });
+        history.push(HistoryPoint {
+            iteration: iterations,
+            seconds: start.elapsed().as_secs_f64(),
+            w_products: products_per_iteration * iterations + 1,
+            error,
+        });
         if error < 0.99 * mark {
             (mark, improved_at) = (error, iterations);
         }

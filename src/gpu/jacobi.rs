@@ -11,7 +11,12 @@ use super::operator::GpuOperator;
 use crate::problem::ContactProblem;
 use crate::solvers::{SolveReport, SolverKind, SolverOptions};
 
-pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Option<&[f64]>) -> Result<SolveReport, GpuError> {
+pub fn solve(
+    ctx: &GpuContext,
+    p: &ContactProblem,
+    opts: &SolverOptions,
+    r0: Option<&[f64]>,
+) -> Result<SolveReport, GpuError> {
     let start = Instant::now();
     let nc = p.n_contacts();
     let (rotation, friction) = super::specialisation(p);

@@ -49,12 +49,32 @@ impl Kernels {
     pub fn new(ctx: &GpuContext, rotation: bool, friction: bool) -> Self {
         let flags = [("ROTATION", rotation as u8 as f64), ("FRICTION", friction as u8 as f64)];
         Self {
-            body_accumulate: pipeline(ctx, "body_accumulate", include_str!("../../shaders/body_accumulate.wgsl"), &flags),
+            body_accumulate: pipeline(
+                ctx,
+                "body_accumulate",
+                include_str!("../../shaders/body_accumulate.wgsl"),
+                &flags,
+            ),
             contact_gather: pipeline(ctx, "contact_gather", include_str!("../../shaders/contact_gather.wgsl"), &flags),
             bsr_product: pipeline(ctx, "bsr_product", include_str!("../../shaders/bsr_product.wgsl"), &[]),
-            jacobi_update: pipeline(ctx, "jacobi_update", &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/jacobi_update.wgsl")), &[]),
-            nlgs_colour: pipeline(ctx, "nlgs_colour", &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/nlgs_colour.wgsl")), &flags),
-            nlgs_colour_bsr: pipeline(ctx, "nlgs_colour_bsr", &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/nlgs_colour_bsr.wgsl")), &[]),
+            jacobi_update: pipeline(
+                ctx,
+                "jacobi_update",
+                &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/jacobi_update.wgsl")),
+                &[],
+            ),
+            nlgs_colour: pipeline(
+                ctx,
+                "nlgs_colour",
+                &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/nlgs_colour.wgsl")),
+                &flags,
+            ),
+            nlgs_colour_bsr: pipeline(
+                ctx,
+                "nlgs_colour_bsr",
+                &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/nlgs_colour_bsr.wgsl")),
+                &[],
+            ),
             reduce_dot: pipeline(ctx, "reduce_dot", include_str!("../../shaders/reduce_dot.wgsl"), &[]),
             reduce_final: pipeline(ctx, "reduce_final", include_str!("../../shaders/reduce_final.wgsl"), &[]),
             cpg_scalars: pipeline(ctx, "cpg_scalars", include_str!("../../shaders/cpg_scalars.wgsl"), &[]),
@@ -88,9 +108,16 @@ pub fn storage<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, data: &[T]) -> w
 }
 
 pub fn bind(ctx: &GpuContext, pipeline: &wgpu::ComputePipeline, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
-    let entries: Vec<wgpu::BindGroupEntry> =
-        buffers.iter().enumerate().map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() }).collect();
-    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &pipeline.get_bind_group_layout(0), entries: &entries })
+    let entries: Vec<wgpu::BindGroupEntry> = buffers
+        .iter()
+        .enumerate()
+        .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() })
+        .collect();
+    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &entries,
+    })
 }
 
 /// A small uniform buffer (colour ranges).

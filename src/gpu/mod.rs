@@ -4,8 +4,8 @@
 
 pub mod apgd;
 pub mod colouring;
-pub mod cpg;
 pub mod context;
+pub mod cpg;
 pub mod cpu;
 pub mod driver;
 pub mod jacobi;
@@ -23,7 +23,13 @@ use crate::problem::ContactProblem;
 use crate::solvers::{SolveReport, SolverKind, SolverOptions};
 
 /// Solves `problem` on the GPU with `kind`, or says that the GPU path lacks that solver.
-pub fn solve(ctx: &GpuContext, problem: &ContactProblem, kind: SolverKind, opts: &SolverOptions, r0: Option<&[f64]>) -> Result<SolveReport, GpuError> {
+pub fn solve(
+    ctx: &GpuContext,
+    problem: &ContactProblem,
+    kind: SolverKind,
+    opts: &SolverOptions,
+    r0: Option<&[f64]>,
+) -> Result<SolveReport, GpuError> {
     if opts.criterion != crate::solvers::StopCriterion::Natural {
         return Err(GpuError::Criterion(format!("{:?}", opts.criterion).to_lowercase()));
     }

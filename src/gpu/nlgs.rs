@@ -24,7 +24,12 @@ struct Range {
     _pad: [u32; 2],
 }
 
-pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Option<&[f64]>) -> Result<SolveReport, GpuError> {
+pub fn solve(
+    ctx: &GpuContext,
+    p: &ContactProblem,
+    opts: &SolverOptions,
+    r0: Option<&[f64]>,
+) -> Result<SolveReport, GpuError> {
     let start = Instant::now();
     let nc = p.n_contacts();
     let r = initial_impulses(p, r0);
@@ -54,10 +59,13 @@ pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Opt
             let order = storage(ctx, "order", &colouring.order);
             let v = storage(ctx, "v", &vec![[0.0f32; 4]; layout.inv_mass.len()]);
             // v = M⁻¹ Bᵀ r of the starting impulses, once.
-            let accumulate = bind(ctx, &kernels.body_accumulate, &[&contacts, &start_buf, &list, &inv_mass, &r_buf, &v]);
-            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("nlgs start") });
+            let accumulate =
+                bind(ctx, &kernels.body_accumulate, &[&contacts, &start_buf, &list, &inv_mass, &r_buf, &v]);
+            let mut encoder =
+                ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("nlgs start") });
             {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
+                let mut pass =
+                    encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
                 pass.set_pipeline(&kernels.body_accumulate);
                 pass.set_bind_group(0, &accumulate, &[]);
                 pass.dispatch_workgroups(groups(layout.inv_mass.len()), 1, 1);
@@ -66,7 +74,14 @@ pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Opt
             let groups_per_colour: Vec<(wgpu::BindGroup, u32)> = ranges(&colouring)
                 .into_iter()
                 .map(|(range, count)| {
-                    (bind(ctx, &kernels.nlgs_colour, &[&contacts, &inv_mass, &diag_buf, &q_buf, &mu_buf, &order, &r_buf, &v, &range]), count)
+                    (
+                        bind(
+                            ctx,
+                            &kernels.nlgs_colour,
+                            &[&contacts, &inv_mass, &diag_buf, &q_buf, &mu_buf, &order, &r_buf, &v, &range],
+                        ),
+                        count,
+                    )
                 })
                 .collect();
             iterate(ctx, p, opts, SolverKind::Nlgs, start, r, &r_buf, 1, |pass| {
@@ -88,7 +103,14 @@ pub fn solve(ctx: &GpuContext, p: &ContactProblem, opts: &SolverOptions, r0: Opt
             let groups_per_colour: Vec<(wgpu::BindGroup, u32)> = ranges(&colouring)
                 .into_iter()
                 .map(|(range, count)| {
-                    (bind(ctx, &kernels.nlgs_colour_bsr, &[&row_ptr, &cols, &blocks, &diag_buf, &q_buf, &mu_buf, &order, &r_buf, &range]), count)
+                    (
+                        bind(
+                            ctx,
+                            &kernels.nlgs_colour_bsr,
+                            &[&row_ptr, &cols, &blocks, &diag_buf, &q_buf, &mu_buf, &order, &r_buf, &range],
+                        ),
+                        count,
+                    )
                 })
                 .collect();
             let _ = nc;

@@ -7,13 +7,30 @@ use super::layout::{BsrLayout, MatrixFreeLayout};
 use crate::problem::Delassus;
 
 pub enum GpuOperator {
-    MatrixFree { bodies: usize, contacts: usize, accumulate: wgpu::BindGroup, gather: wgpu::BindGroup, _buffers: Vec<wgpu::Buffer> },
-    Sparse { contacts: usize, product: wgpu::BindGroup, _buffers: Vec<wgpu::Buffer> },
+    MatrixFree {
+        bodies: usize,
+        contacts: usize,
+        accumulate: wgpu::BindGroup,
+        gather: wgpu::BindGroup,
+        _buffers: Vec<wgpu::Buffer>,
+    },
+    Sparse {
+        contacts: usize,
+        product: wgpu::BindGroup,
+        _buffers: Vec<wgpu::Buffer>,
+    },
 }
 
 impl GpuOperator {
     /// Uploads `w` and binds it to read `r` and `q` and write `u`.
-    pub fn new(ctx: &GpuContext, kernels: &Kernels, w: &Delassus, r: &wgpu::Buffer, q: &wgpu::Buffer, u: &wgpu::Buffer) -> Self {
+    pub fn new(
+        ctx: &GpuContext,
+        kernels: &Kernels,
+        w: &Delassus,
+        r: &wgpu::Buffer,
+        q: &wgpu::Buffer,
+        u: &wgpu::Buffer,
+    ) -> Self {
         match w {
             Delassus::MatrixFree(op) => {
                 let l = MatrixFreeLayout::new(op);

@@ -16,7 +16,16 @@ pub struct Dot {
 
 impl Dot {
     #[allow(clippy::too_many_arguments)]
-    pub fn new(ctx: &GpuContext, k: &Kernels, a: &wgpu::Buffer, b: &wgpu::Buffer, n: usize, partials: &wgpu::Buffer, scalars: &wgpu::Buffer, slot: u32) -> Self {
+    pub fn new(
+        ctx: &GpuContext,
+        k: &Kernels,
+        a: &wgpu::Buffer,
+        b: &wgpu::Buffer,
+        n: usize,
+        partials: &wgpu::Buffer,
+        scalars: &wgpu::Buffer,
+        slot: u32,
+    ) -> Self {
         let groups = n_partials(n) as u32;
         let len = uniform(ctx, "len", &[n as u32, 0, 0, 0]);
         let job = uniform(ctx, "job", &[groups, slot, 0, 0]);

@@ -34,9 +34,19 @@ pub fn body_accumulate(ctx: &GpuContext, op: &MatrixFreeLayout, r: &[[f32; 2]]) 
     read_back(ctx, &bufs[5], op.inv_mass.len()).map_err(GpuError::Runtime)
 }
 
-pub fn contact_gather(ctx: &GpuContext, op: &MatrixFreeLayout, v: &[[f32; 4]], q: &[[f32; 2]]) -> Result<Vec<[f32; 2]>, GpuError> {
+pub fn contact_gather(
+    ctx: &GpuContext,
+    op: &MatrixFreeLayout,
+    v: &[[f32; 4]],
+    q: &[[f32; 2]],
+) -> Result<Vec<[f32; 2]>, GpuError> {
     let k = Kernels::new(ctx, op.rotation, op.friction);
-    let bufs = [storage(ctx, "contacts", &op.contacts), storage(ctx, "v", v), storage(ctx, "q", q), storage(ctx, "u", &vec![[0.0f32; 2]; q.len()])];
+    let bufs = [
+        storage(ctx, "contacts", &op.contacts),
+        storage(ctx, "v", v),
+        storage(ctx, "q", q),
+        storage(ctx, "u", &vec![[0.0f32; 2]; q.len()]),
+    ];
     let group = bind(ctx, &k.contact_gather, &bufs.iter().collect::<Vec<_>>());
     run(ctx, &k.contact_gather, &group, q.len());
     read_back(ctx, &bufs[3], q.len()).map_err(GpuError::Runtime)
@@ -57,7 +67,13 @@ pub fn bsr_product(ctx: &GpuContext, w: &BsrLayout, r: &[[f32; 2]], q: &[[f32; 2
     read_back(ctx, &bufs[5], q.len()).map_err(GpuError::Runtime)
 }
 
-pub fn jacobi_update(ctx: &GpuContext, u: &[[f32; 2]], mu: &[f32], step: &[f32], r: &[[f32; 2]]) -> Result<Vec<[f32; 2]>, GpuError> {
+pub fn jacobi_update(
+    ctx: &GpuContext,
+    u: &[[f32; 2]],
+    mu: &[f32],
+    step: &[f32],
+    r: &[[f32; 2]],
+) -> Result<Vec<[f32; 2]>, GpuError> {
     let k = Kernels::new(ctx, true, true);
     let bufs = [storage(ctx, "u", u), storage(ctx, "mu", mu), storage(ctx, "step", step), storage(ctx, "r", r)];
     let group = bind(ctx, &k.jacobi_update, &bufs.iter().collect::<Vec<_>>());
@@ -95,7 +111,10 @@ pub fn nlgs_colour(
     all.push(&range);
     let group = bind(ctx, &k.nlgs_colour, &all);
     run(ctx, &k.nlgs_colour, &group, count as usize);
-    Ok((read_back(ctx, &bufs[6], r.len()).map_err(GpuError::Runtime)?, read_back(ctx, &bufs[7], v.len()).map_err(GpuError::Runtime)?))
+    Ok((
+        read_back(ctx, &bufs[6], r.len()).map_err(GpuError::Runtime)?,
+        read_back(ctx, &bufs[7], v.len()).map_err(GpuError::Runtime)?,
+    ))
 }
 
 /// One colour of the coloured NLGS sweep on an explicit `W`: returns the new `r`.

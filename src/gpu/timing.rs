@@ -20,7 +20,8 @@ fn run(ctx: &GpuContext, n: usize, mut record: impl FnMut(&mut wgpu::ComputePass
     let start = Instant::now();
     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("timing") });
     {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("timing"), timestamp_writes: None });
+        let mut pass =
+            encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("timing"), timestamp_writes: None });
         for _ in 0..n {
             record(&mut pass);
         }
@@ -38,7 +39,8 @@ pub fn kernel_times(ctx: &GpuContext, p: &ContactProblem, n: usize) -> Result<Ke
     let q = storage(ctx, "q", &to_f32_pairs(&p.q));
     let u = storage(ctx, "u", &vec![[0.0f32; 2]; nc]);
     let mu = storage(ctx, "mu", &p.mu.iter().map(|&m| m as f32).collect::<Vec<_>>());
-    let step = storage(ctx, "step", &p.w.diag_blocks().iter().map(|d| (1.0 / (d[0] + d[3])) as f32).collect::<Vec<_>>());
+    let step =
+        storage(ctx, "step", &p.w.diag_blocks().iter().map(|d| (1.0 / (d[0] + d[3])) as f32).collect::<Vec<_>>());
     let op = GpuOperator::new(ctx, &kernels, &p.w, &r, &q, &u);
     let update = bind(ctx, &kernels.jacobi_update, &[&u, &mu, &step, &r]);
     run(ctx, 3, |pass| op.record(&kernels, pass))?; // warm-up: pipeline creation, first-use costs

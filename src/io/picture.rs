@@ -12,7 +12,8 @@ use crate::detection::Antagonist;
 use crate::stepping::Simulation;
 use crate::world::BodyShape;
 
-const PALETTE: [RGBColor; 4] = [RGBColor(200, 200, 205), RGBColor(230, 205, 150), RGBColor(170, 200, 230), RGBColor(210, 170, 170)];
+const PALETTE: [RGBColor; 4] =
+    [RGBColor(200, 200, 205), RGBColor(230, 205, 150), RGBColor(170, 200, 230), RGBColor(210, 170, 170)];
 
 /// Writes the picture, `width` pixels wide.
 pub fn write_png(sim: &Simulation, path: &Path, width: u32) -> Result<()> {

@@ -151,6 +151,7 @@ impl RunOutput {
     pub fn finish(mut self, summary: &RunSummary) -> Result<()> {
         self.csv.flush()?;
         let path = self.dir.join("summary.json");
-        std::fs::write(&path, serde_json::to_string_pretty(summary)?).with_context(|| format!("writing {}", path.display()))
+        std::fs::write(&path, serde_json::to_string_pretty(summary)?)
+            .with_context(|| format!("writing {}", path.display()))
     }
 }

@@ -108,7 +108,10 @@ fn parse_fc2d(text: &str) -> Result<ContactProblem, Result<ParseError, String>> 
     let mut c = Cursor::new(text);
     let dim = c.usize("dimension").map_err(Ok)?;
     if dim != 2 {
-        return Err(Ok(ParseError { line: c.line_no(), msg: format!("dimension is {dim}: only 2D problems are supported") }));
+        return Err(Ok(ParseError {
+            line: c.line_no(),
+            msg: format!("dimension is {dim}: only 2D problems are supported"),
+        }));
     }
     let nc = c.usize("number of contacts").map_err(Ok)?;
     if nc > 100_000_000 {

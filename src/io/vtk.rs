@@ -7,14 +7,23 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use vtkio::model::{Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version, VertexNumbers, Vtk};
+use vtkio::model::{
+    Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version, VertexNumbers, Vtk,
+};
 
 use crate::detection::Antagonist;
 use crate::problem::cone::ContactStatus;
 use crate::stepping::Simulation;
 use crate::world::{BodyShape, WallShape};
 
-fn grid(title: &str, points: Vec<f64>, connectivity: Vec<u64>, offsets: Vec<u64>, types: Vec<CellType>, data: Attributes) -> Vtk {
+fn grid(
+    title: &str,
+    points: Vec<f64>,
+    connectivity: Vec<u64>,
+    offsets: Vec<u64>,
+    types: Vec<CellType>,
+    data: Attributes,
+) -> Vtk {
     Vtk {
         version: Version::default(),
         title: title.to_string(),
@@ -80,7 +89,9 @@ pub fn write_step(sim: &Simulation, dir: &Path, index: usize) -> Result<[PathBuf
         cell: vec![Attribute::scalars("body", 1).with_data(cell_body)],
     };
     let grains = dir.join(format!("grains_{index:06}.vtu"));
-    grid("moreau grains", points, conn, offs, types, data).export(&grains).with_context(|| format!("writing {}", grains.display()))?;
+    grid("moreau grains", points, conn, offs, types, data)
+        .export(&grains)
+        .with_context(|| format!("writing {}", grains.display()))?;
 
     // Contacts: a line per contact.
     let contacts = sim.contacts();
@@ -99,10 +110,13 @@ pub fn write_step(sim: &Simulation, dir: &Path, index: usize) -> Result<[PathBuf
     let data = Attributes {
         point: vec![],
         cell: vec![
-            Attribute::scalars("normal_impulse", 1).with_data(contacts.iter().map(|c| c.impulse[0]).collect::<Vec<f64>>()),
-            Attribute::scalars("tangential_impulse", 1).with_data(contacts.iter().map(|c| c.impulse[1]).collect::<Vec<f64>>()),
+            Attribute::scalars("normal_impulse", 1)
+                .with_data(contacts.iter().map(|c| c.impulse[0]).collect::<Vec<f64>>()),
+            Attribute::scalars("tangential_impulse", 1)
+                .with_data(contacts.iter().map(|c| c.impulse[1]).collect::<Vec<f64>>()),
             Attribute::scalars("gap", 1).with_data(contacts.iter().map(|c| c.contact.gap).collect::<Vec<f64>>()),
-            Attribute::scalars("status", 1).with_data(contacts.iter().map(|c| status_code(c.status)).collect::<Vec<i32>>()),
+            Attribute::scalars("status", 1)
+                .with_data(contacts.iter().map(|c| status_code(c.status)).collect::<Vec<i32>>()),
         ],
     };
     let types = vec![CellType::Line; contacts.len()];
@@ -127,13 +141,16 @@ pub fn write_step(sim: &Simulation, dir: &Path, index: usize) -> Result<[PathBuf
         });
     }
     let walls = dir.join(format!("walls_{index:06}.vtu"));
-    grid("moreau walls", points, conn, offs, types, Attributes::new()).export(&walls).with_context(|| format!("writing {}", walls.display()))?;
+    grid("moreau walls", points, conn, offs, types, Attributes::new())
+        .export(&walls)
+        .with_context(|| format!("writing {}", walls.display()))?;
     Ok([grains, contacts_path, walls])
 }
 
 /// A ParaView collection (`.pvd`) of (time, file) pairs.
 pub fn write_pvd(path: &Path, entries: &[(f64, PathBuf)]) -> Result<()> {
-    let mut s = String::from("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n");
+    let mut s =
+        String::from("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n");
     for (t, f) in entries {
         let name = f.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         s.push_str(&format!("    <DataSet timestep=\"{t:.9e}\" part=\"0\" file=\"{name}\"/>\n"));

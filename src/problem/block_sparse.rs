@@ -35,9 +35,8 @@ impl BlockSparse {
         for a in 0..n {
             row_ptr[a + 1] += row_ptr[a];
         }
-        let diag_pos = (0..n)
-            .map(|a| (row_ptr[a]..row_ptr[a + 1]).find(|&k| cols[k] == a).unwrap_or(usize::MAX))
-            .collect();
+        let diag_pos =
+            (0..n).map(|a| (row_ptr[a]..row_ptr[a + 1]).find(|&k| cols[k] == a).unwrap_or(usize::MAX)).collect();
         Self { row_ptr, cols, blocks, diag_pos }
     }
 

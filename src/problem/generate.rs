@@ -26,7 +26,13 @@ pub fn heavy_column(n_light: usize, mass_ratio: f64, mu: f64) -> ContactProblem 
     bodies.push(disk(mass_ratio, radius));
     let mut contacts = vec![Contact { i: 0, j: None, normal: [0.0, 1.0], lever_i: [0.0, -radius], lever_j: [0.0; 2] }];
     for k in 1..bodies.len() {
-        contacts.push(Contact { i: k, j: Some(k - 1), normal: [0.0, 1.0], lever_i: [0.0, -radius], lever_j: [0.0, radius] });
+        contacts.push(Contact {
+            i: k,
+            j: Some(k - 1),
+            normal: [0.0, 1.0],
+            lever_i: [0.0, -radius],
+            lever_j: [0.0, radius],
+        });
     }
     let v_free: Vec<f64> = bodies.iter().flat_map(|_| [0.0, -g * h, 0.0]).collect();
     problem_from(bodies, &contacts, &v_free, mu)
@@ -45,17 +51,47 @@ pub fn lattice_packing(nx: usize, ny: usize, mu: f64, seed: u64) -> ContactProbl
         for ix in 0..nx {
             let k = id(ix, iy);
             if iy == 0 {
-                contacts.push(Contact { i: k, j: None, normal: [0.0, 1.0], lever_i: [0.0, -radius], lever_j: [0.0; 2] });
+                contacts.push(Contact {
+                    i: k,
+                    j: None,
+                    normal: [0.0, 1.0],
+                    lever_i: [0.0, -radius],
+                    lever_j: [0.0; 2],
+                });
             } else {
-                contacts.push(Contact { i: k, j: Some(id(ix, iy - 1)), normal: [0.0, 1.0], lever_i: [0.0, -radius], lever_j: [0.0, radius] });
+                contacts.push(Contact {
+                    i: k,
+                    j: Some(id(ix, iy - 1)),
+                    normal: [0.0, 1.0],
+                    lever_i: [0.0, -radius],
+                    lever_j: [0.0, radius],
+                });
             }
             if ix == 0 {
-                contacts.push(Contact { i: k, j: None, normal: [1.0, 0.0], lever_i: [-radius, 0.0], lever_j: [0.0; 2] });
+                contacts.push(Contact {
+                    i: k,
+                    j: None,
+                    normal: [1.0, 0.0],
+                    lever_i: [-radius, 0.0],
+                    lever_j: [0.0; 2],
+                });
             } else {
-                contacts.push(Contact { i: k, j: Some(id(ix - 1, iy)), normal: [1.0, 0.0], lever_i: [-radius, 0.0], lever_j: [radius, 0.0] });
+                contacts.push(Contact {
+                    i: k,
+                    j: Some(id(ix - 1, iy)),
+                    normal: [1.0, 0.0],
+                    lever_i: [-radius, 0.0],
+                    lever_j: [radius, 0.0],
+                });
             }
             if ix == nx - 1 {
-                contacts.push(Contact { i: k, j: None, normal: [-1.0, 0.0], lever_i: [radius, 0.0], lever_j: [0.0; 2] });
+                contacts.push(Contact {
+                    i: k,
+                    j: None,
+                    normal: [-1.0, 0.0],
+                    lever_i: [radius, 0.0],
+                    lever_j: [0.0; 2],
+                });
             }
         }
     }

@@ -149,7 +149,8 @@ impl MatrixFree {
     pub(crate) fn scatter_one(&self, a: usize, rn: f64, rt: f64, v: &mut [f64]) {
         let c = &self.rows[a];
         let n = c.n;
-        let p = if self.dofs.friction { [rn * n[0] - rt * n[1], rn * n[1] + rt * n[0]] } else { [rn * n[0], rn * n[1]] };
+        let p =
+            if self.dofs.friction { [rn * n[0] - rt * n[1], rn * n[1] + rt * n[0]] } else { [rn * n[0], rn * n[1]] };
         let s = self.dofs.per_body();
         let b = self.bodies[c.i];
         v[s * c.i] += b.inv_mass * p[0];

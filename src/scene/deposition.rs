@@ -73,7 +73,8 @@ impl Deposition {
     /// Falls vertically from `p` (never upwards): landing height and what it lands on.
     fn drop(&self, p: DVec2, r: f64, exclude: Option<usize>) -> (DVec2, Support) {
         let mut best = (self.y0 + r, Support::Floor);
-        let (c0, c1) = (((p.x - r - self.cell) / self.cell).floor() as i64, ((p.x + r + self.cell) / self.cell).floor() as i64);
+        let (c0, c1) =
+            (((p.x - r - self.cell) / self.cell).floor() as i64, ((p.x + r + self.cell) / self.cell).floor() as i64);
         for cx in c0..=c1 {
             let Some(list) = self.columns.get(&cx) else { continue };
             for &k in list {
@@ -236,7 +237,15 @@ impl Deposition {
 }
 
 /// `count` disks with radii uniform in `[r_min, r_max]` deposited in `[x0, x1]` on the floor `y0`.
-pub fn deposit_disks(x0: f64, x1: f64, y0: f64, count: usize, r_min: f64, r_max: f64, seed: u64) -> (Vec<DVec2>, Vec<f64>) {
+pub fn deposit_disks(
+    x0: f64,
+    x1: f64,
+    y0: f64,
+    count: usize,
+    r_min: f64,
+    r_max: f64,
+    seed: u64,
+) -> (Vec<DVec2>, Vec<f64>) {
     let mut rng = rand::rngs::SmallRng::seed_from_u64(seed);
     let mut dep = Deposition::new(x0, x1, y0, r_max);
     for _ in 0..count {

@@ -213,7 +213,12 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    fn err<T>(&self, span: std::ops::Range<usize>, field: impl Into<String>, message: impl Into<String>) -> Result<T, SceneError> {
+    fn err<T>(
+        &self,
+        span: std::ops::Range<usize>,
+        field: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Result<T, SceneError> {
         Err(SceneError::Invalid {
             path: self.origin.to_path_buf(),
             line: line_of(self.text, span.start),
@@ -290,10 +295,18 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
     for (k, m) in file.material.iter().enumerate() {
         let spec = m.get_ref();
         if names.contains(&spec.name) {
-            return cx.err(m.span(), format!("material[{k}].name"), format!("material {:?} is defined twice", spec.name));
+            return cx.err(
+                m.span(),
+                format!("material[{k}].name"),
+                format!("material {:?} is defined twice", spec.name),
+            );
         }
         if !(spec.density.is_finite() && spec.density > 0.0) {
-            return cx.err(m.span(), format!("material[{k}].density"), format!("{} must be finite and > 0", spec.density));
+            return cx.err(
+                m.span(),
+                format!("material[{k}].density"),
+                format!("{} must be finite and > 0", spec.density),
+            );
         }
         names.push(spec.name.clone());
         density.push(spec.density);
@@ -303,19 +316,21 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         None => Interaction::default(),
     };
     let mut materials = Materials::new(names, density, default_law);
-    let material_index = |name: &Option<String>, span: std::ops::Range<usize>, field: String| -> Result<usize, SceneError> {
-        match name {
-            None => Ok(0),
-            Some(n) => match materials_names(&file).iter().position(|m| m == n) {
-                Some(k) => Ok(k),
-                None => cx.err(span, field, format!("unknown material {n:?}")),
-            },
-        }
-    };
+    let material_index =
+        |name: &Option<String>, span: std::ops::Range<usize>, field: String| -> Result<usize, SceneError> {
+            match name {
+                None => Ok(0),
+                Some(n) => match materials_names(&file).iter().position(|m| m == n) {
+                    Some(k) => Ok(k),
+                    None => cx.err(span, field, format!("unknown material {n:?}")),
+                },
+            }
+        };
     for (k, p) in file.interaction.iter().enumerate() {
         let spec = p.get_ref();
-        let law = check_law(&LawSpec { friction: spec.friction, restitution: spec.restitution, cohesion: spec.cohesion })
-            .or_else(|m| cx.err(p.span(), format!("interaction[{k}]"), m))?;
+        let law =
+            check_law(&LawSpec { friction: spec.friction, restitution: spec.restitution, cohesion: spec.cohesion })
+                .or_else(|m| cx.err(p.span(), format!("interaction[{k}]"), m))?;
         let a = material_index(&Some(spec.materials[0].clone()), p.span(), format!("interaction[{k}].materials"))?;
         let b = material_index(&Some(spec.materials[1].clone()), p.span(), format!("interaction[{k}].materials"))?;
         materials.set(a, b, law);
@@ -348,9 +363,19 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         if (velocity != DVec2::ZERO || spin != 0.0) && !effects.moving_walls {
             return cx.err(w.span(), field("velocity"), "a moving wall needs the effect `moving_walls` in `effects`");
         }
-        let shapes = [spec.segment.is_some(), spec.solid_box.is_some(), spec.container.is_some(), spec.polygon.is_some(), spec.drum.is_some()];
+        let shapes = [
+            spec.segment.is_some(),
+            spec.solid_box.is_some(),
+            spec.container.is_some(),
+            spec.polygon.is_some(),
+            spec.drum.is_some(),
+        ];
         if shapes.iter().filter(|&&s| s).count() != 1 {
-            return cx.err(w.span(), format!("wall[{k}]"), "give exactly one of segment, box, container, polygon, drum");
+            return cx.err(
+                w.span(),
+                format!("wall[{k}]"),
+                "give exactly one of segment, box, container, polygon, drum",
+            );
         }
         // Every wall is built as (local shapes around a centre).
         let mut parts: Vec<(WallShape, DVec2)> = Vec::new();
@@ -380,7 +405,8 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
             let mut tmp = crate::world::Bodies::new(true);
             let centroid_guess = vertices.iter().copied().sum::<DVec2>() / vertices.len().max(1) as f64;
             let rel: Vec<DVec2> = vertices.iter().map(|p| *p - centroid_guess).collect();
-            tmp.add(&BodySpec::polygon(centroid_guess, rel, 0), 1.0).or_else(|m| cx.err(w.span(), field("polygon"), m))?;
+            tmp.add(&BodySpec::polygon(centroid_guess, rel, 0), 1.0)
+                .or_else(|m| cx.err(w.span(), field("polygon"), m))?;
             let centroid = tmp.position[0];
             let c = spec.center.map(v).unwrap_or(centroid);
             let shape = tmp.polygons.remove(0);
@@ -404,7 +430,9 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
                 return cx.err(w.span(), field("drum"), "needs a finite centre, radius > 0 and sides >= 3");
             }
             let c = spec.center.map(v).unwrap_or(v(d.center));
-            let at = |k: usize| v(d.center) + d.radius * DVec2::from_angle(std::f64::consts::TAU * k as f64 / d.sides as f64);
+            let at = |k: usize| {
+                v(d.center) + d.radius * DVec2::from_angle(std::f64::consts::TAU * k as f64 / d.sides as f64)
+            };
             for s in 0..d.sides {
                 parts.push(segment_part(at(s), at(s + 1), c));
             }
@@ -421,10 +449,16 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         let material = material_index(&spec.material, b.span(), field("material"))?;
         let mut body = match (&spec.disk, &spec.polygon, &spec.regular) {
             (Some(d), None, None) => BodySpec::disk(v(d.center), d.radius, material),
-            (None, Some(p), None) => BodySpec::polygon(v(p.center), p.vertices.iter().map(|x| v(*x)).collect(), material),
+            (None, Some(p), None) => {
+                BodySpec::polygon(v(p.center), p.vertices.iter().map(|x| v(*x)).collect(), material)
+            }
             (None, None, Some(r)) => {
                 if r.sides < 3 {
-                    return cx.err(b.span(), field("regular.sides"), format!("{} sides: a polygon needs at least 3", r.sides));
+                    return cx.err(
+                        b.span(),
+                        field("regular.sides"),
+                        format!("{} sides: a polygon needs at least 3", r.sides),
+                    );
                 }
                 BodySpec::regular_polygon(v(r.center), r.radius, r.sides, 0.0, material)
             }
@@ -476,11 +510,16 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         let (centers, radii) = match spec.kind {
             GenerateKind::Grid => {
                 let spacing = spec.spacing.unwrap_or(0.02 * r_max);
-                generate::grid_fill(lo, hi, count, r_min, r_max, spacing, seed).or_else(|m| cx.err(g.span(), field("count"), m))?
+                generate::grid_fill(lo, hi, count, r_min, r_max, spacing, seed)
+                    .or_else(|m| cx.err(g.span(), field("count"), m))?
             }
             GenerateKind::Deposition => {
                 if spec.sides.is_some() {
-                    return cx.err(g.span(), field("sides"), "deposition generates disks only; use kind = \"grid\" for polygons");
+                    return cx.err(
+                        g.span(),
+                        field("sides"),
+                        "deposition generates disks only; use kind = \"grid\" for polygons",
+                    );
                 }
                 if hi.x - lo.x < 2.0 * r_max {
                     return cx.err(g.span(), field("region"), "narrower than one grain");
@@ -488,7 +527,11 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
                 let (c, r) = deposition::deposit_disks(lo.x, hi.x, lo.y, count, r_min, r_max, seed);
                 if let Some(top) = c.iter().zip(&r).map(|(c, r)| c.y + r).reduce(f64::max) {
                     if top > hi.y {
-                        return cx.err(g.span(), field("region"), format!("{count} grains pile up to y = {top:.4}, above the region's top {}", hi.y));
+                        return cx.err(
+                            g.span(),
+                            field("region"),
+                            format!("{count} grains pile up to y = {top:.4}, above the region's top {}", hi.y),
+                        );
                     }
                 }
                 (c, r)
@@ -499,7 +542,9 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
                 let mut centers = Vec::with_capacity(count);
                 for row in 0..base {
                     for k in 0..base - row {
-                        centers.push(lo + DVec2::new((row as f64 / 2.0 + k as f64 + 0.5) * side, (row as f64 + 0.5) * side));
+                        centers.push(
+                            lo + DVec2::new((row as f64 / 2.0 + k as f64 + 0.5) * side, (row as f64 + 0.5) * side),
+                        );
                     }
                 }
                 (centers, vec![r_min; count])
@@ -552,8 +597,13 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         options.max_iter = s.max_iter.unwrap_or(options.max_iter);
         options.omega = s.omega.unwrap_or(1.0);
         if let Some(c) = &s.criterion {
-            options.criterion = StopCriterion::from_str(c, true)
-                .or_else(|_| cx.err(solver_span.clone(), "solver.criterion", format!("unknown criterion {c:?} (natural, quad, maxm, qm16)")))?;
+            options.criterion = StopCriterion::from_str(c, true).or_else(|_| {
+                cx.err(
+                    solver_span.clone(),
+                    "solver.criterion",
+                    format!("unknown criterion {c:?} (natural, quad, maxm, qm16)"),
+                )
+            })?;
         }
         if let Some(o) = &s.ordering {
             options.ordering = Ordering::from_str(o, true)
@@ -579,7 +629,10 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         picture_step: output.and_then(|o| o.picture_step),
     };
     Ok(Scene {
-        name: file.name.clone().unwrap_or_else(|| origin.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()),
+        name: file
+            .name
+            .clone()
+            .unwrap_or_else(|| origin.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()),
         description: file.description.clone().unwrap_or_default(),
         world,
         settings,

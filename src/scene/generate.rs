@@ -5,7 +5,15 @@ use rand::{Rng, SeedableRng};
 
 /// Grain centres and sizes on a square lattice of pitch `2 r_max + spacing`, filled row by row
 /// from the bottom-left of `[lo, hi]`; radii uniform in `[r_min, r_max]`.
-pub fn grid_fill(lo: DVec2, hi: DVec2, count: usize, r_min: f64, r_max: f64, spacing: f64, seed: u64) -> Result<(Vec<DVec2>, Vec<f64>), String> {
+pub fn grid_fill(
+    lo: DVec2,
+    hi: DVec2,
+    count: usize,
+    r_min: f64,
+    r_max: f64,
+    spacing: f64,
+    seed: u64,
+) -> Result<(Vec<DVec2>, Vec<f64>), String> {
     let pitch = 2.0 * r_max + spacing;
     let nx = ((hi.x - lo.x) / pitch).floor() as usize;
     let ny = ((hi.y - lo.y) / pitch).floor() as usize;

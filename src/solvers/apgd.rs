@@ -24,7 +24,8 @@ fn objective(x: &[f64], wx: &[f64], q: &[f64]) -> f64 {
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut gamma: Vec<f64>) -> SolveReport {
     let n = gamma.len();
     let every = opts.apgd_threshold_every.max(1);
-    let update_thresholds = |r: &[f64]| -> Vec<f64> { p.mu.iter().enumerate().map(|(a, m)| m * r[2 * a].max(0.0)).collect() };
+    let update_thresholds =
+        |r: &[f64]| -> Vec<f64> { p.mu.iter().enumerate().map(|(a, m)| m * r[2 * a].max(0.0)).collect() };
     let mut thresholds = update_thresholds(&gamma);
     project(&mut gamma, &thresholds);
     let mut monitor = Monitor::new(p, opts, SolverKind::Apgd, &gamma);

@@ -17,12 +17,11 @@ use crate::problem::{dot, norm, ContactProblem};
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>) -> SolveReport {
     let nc = p.n_contacts();
     let n = 2 * nc;
-    let k: Vec<f64> = p
-        .w
-        .diag_blocks()
-        .iter()
-        .flat_map(|d| [opts.latin_k * d[0], opts.latin_k * if d[3] > 0.0 { d[3] } else { d[0] }])
-        .collect();
+    let k: Vec<f64> =
+        p.w.diag_blocks()
+            .iter()
+            .flat_map(|d| [opts.latin_k * d[0], opts.latin_k * if d[3] > 0.0 { d[3] } else { d[0] }])
+            .collect();
     let mut monitor = Monitor::new(p, opts, SolverKind::Latin, &r0);
     let mut z = r0;
     let mut w = p.velocity(&z);

@@ -60,7 +60,8 @@ impl<'a> Monitor<'a> {
     }
 
     fn record(&mut self, error: f64) {
-        let point = HistoryPoint { iteration: self.iteration, seconds: self.elapsed(), w_products: self.w_products, error };
+        let point =
+            HistoryPoint { iteration: self.iteration, seconds: self.elapsed(), w_products: self.w_products, error };
         self.history.push(point);
     }
 

@@ -33,7 +33,12 @@ fn stacked_velocities(world: &World, dofs: Dofs) -> Vec<f64> {
 }
 
 /// The matrix-free operator of the detected contacts.
-fn operator(world: &World, predicted: &[DVec2], contacts: &[DetectedContact], dofs: Dofs) -> Result<MatrixFree, String> {
+fn operator(
+    world: &World,
+    predicted: &[DVec2],
+    contacts: &[DetectedContact],
+    dofs: Dofs,
+) -> Result<MatrixFree, String> {
     let b = &world.bodies;
     let bodies: Vec<Body> = (0..b.len())
         .map(|k| Body { inv_mass: b.inv_mass[k], inv_inertia: if dofs.rotation { b.inv_inertia[k] } else { 0.0 } })
@@ -65,7 +70,10 @@ fn step_reach(world: &World, h: f64) -> (Vec<f64>, Vec<f64>) {
     let walls = world
         .walls
         .iter()
-        .map(|w| h * (w.velocity.length() + w.spin.abs() * w.world_points().iter().map(|p| p.distance(w.center)).fold(0.0, f64::max)))
+        .map(|w| {
+            h * (w.velocity.length()
+                + w.spin.abs() * w.world_points().iter().map(|p| p.distance(w.center)).fold(0.0, f64::max))
+        })
         .collect();
     (bodies, walls)
 }
@@ -163,7 +171,8 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
     let mut step_problem = None;
     if nc > 0 {
         // 3. The local problem.
-        let op = operator(world, &predicted, &detected, dofs).map_err(|message| StepError::Problem { step, message })?;
+        let op =
+            operator(world, &predicted, &detected, dofs).map_err(|message| StepError::Problem { step, message })?;
         let mut q = vec![0.0; 2 * nc];
         op.contact_velocities(&v_free, &mut q);
         let mut u_begin = Vec::new();
@@ -180,7 +189,9 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
         for (a, c) in detected.iter().enumerate() {
             let (other_material, wall_velocity) = match c.other {
                 Antagonist::Body(j) => (world.bodies.material[j] as usize, DVec2::ZERO),
-                Antagonist::Wall(w) => (walls[w].material, if effects.moving_walls { walls[w].velocity_at(c.point) } else { DVec2::ZERO }),
+                Antagonist::Wall(w) => {
+                    (walls[w].material, if effects.moving_walls { walls[w].velocity_at(c.point) } else { DVec2::ZERO })
+                }
             };
             let law = mats.interaction(world.bodies.material[c.i] as usize, other_material);
             let (n, t) = (c.normal, c.normal.perp());
@@ -191,7 +202,8 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
             }
             // Newton's impact law for a contact that closes within this step, u_n⁺ ≥ −e u_n⁻;
             // otherwise the gap term: an open contact acts only if it would close within the step.
-            let approach = if effects.restitution && law.restitution > 0.0 { u_begin[2 * a] - n.dot(wall_velocity) } else { 0.0 };
+            let approach =
+                if effects.restitution && law.restitution > 0.0 { u_begin[2 * a] - n.dot(wall_velocity) } else { 0.0 };
             if approach < 0.0 && c.gap + h * approach <= 0.0 {
                 q[2 * a] += law.restitution * approach;
             } else if c.gap > 0.0 {
@@ -228,7 +240,10 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
         report.stop_reason = solved.stop_reason.clone();
         let mut r = solved.r;
         if r.iter().any(|x| !x.is_finite()) {
-            return Err(StepError::Diverged { step, message: format!("the {} solve returned non-finite impulses", sim.settings.solver.name()) });
+            return Err(StepError::Diverged {
+                step,
+                message: format!("the {} solve returned non-finite impulses", sim.settings.solver.name()),
+            });
         }
         if effects.cohesion {
             for k in 0..2 * nc {
@@ -278,7 +293,8 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
     world.walls.iter_mut().for_each(|w| w.advance(h));
     if let Some(problem) = step_problem {
         let Delassus::MatrixFree(op) = &problem.w else { unreachable!("the step builds a matrix-free problem") };
-        report.max_penetration = end_of_step_penetration(world, op, &predicted, &predicted_angle, &detected, &walls, h * (1.0 - theta));
+        report.max_penetration =
+            end_of_step_penetration(world, op, &predicted, &predicted_angle, &detected, &walls, h * (1.0 - theta));
         if sim.keep_problem {
             sim.last_problem = Some(problem);
         }

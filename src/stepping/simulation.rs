@@ -122,7 +122,9 @@ impl Simulation {
     /// Solves every step on `ctx` (the solver must exist on the GPU path).
     pub fn use_gpu(&mut self, ctx: crate::gpu::GpuContext) -> Result<(), StepError> {
         if !crate::gpu::supports(self.settings.solver) {
-            return Err(StepError::Settings(crate::gpu::GpuError::Unsupported(self.settings.solver.name().to_string()).to_string()));
+            return Err(StepError::Settings(
+                crate::gpu::GpuError::Unsupported(self.settings.solver.name().to_string()).to_string(),
+            ));
         }
         self.gpu = Some(ctx);
         Ok(())

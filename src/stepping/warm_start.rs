@@ -15,7 +15,8 @@ impl WarmStart {
     /// Remembers `impulses` (2 per contact) of `contacts` (sorted by key, as detection returns them).
     pub fn remember(&mut self, contacts: &[DetectedContact], impulses: &[f64]) {
         self.entries.clear();
-        self.entries.extend(contacts.iter().enumerate().map(|(a, c)| (c.key(), [impulses[2 * a], impulses[2 * a + 1]])));
+        self.entries
+            .extend(contacts.iter().enumerate().map(|(a, c)| (c.key(), [impulses[2 * a], impulses[2 * a + 1]])));
         debug_assert!(self.entries.windows(2).all(|w| w[0].0 <= w[1].0));
     }
 

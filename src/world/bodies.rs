@@ -13,7 +13,9 @@ pub struct PolygonShape {
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum BodyShape {
-    Disk { radius: f64 },
+    Disk {
+        radius: f64,
+    },
     /// Index into [`Bodies::polygons`].
     Polygon(u32),
 }
@@ -35,9 +37,13 @@ pub struct BodySpec {
 
 #[derive(Clone, Debug)]
 pub enum SpecShape {
-    Disk { radius: f64 },
+    Disk {
+        radius: f64,
+    },
     /// Vertices relative to `center`, any order (their convex hull is used).
-    Polygon { vertices: Vec<DVec2> },
+    Polygon {
+        vertices: Vec<DVec2>,
+    },
 }
 
 impl BodySpec {
@@ -162,8 +168,9 @@ impl Bodies {
                     return Err(format!("a polygon needs at least 3 finite vertices, got {}", vertices.len()));
                 }
                 let pts: Vec<_> = vertices.iter().map(|v| parry2d::math::Vector::new(v.x as f32, v.y as f32)).collect();
-                let hull = ConvexPolygon::from_convex_hull(&pts)
-                    .ok_or_else(|| "degenerate polygon: its vertices have no convex hull of positive area".to_string())?;
+                let hull = ConvexPolygon::from_convex_hull(&pts).ok_or_else(|| {
+                    "degenerate polygon: its vertices have no convex hull of positive area".to_string()
+                })?;
                 let ccw: Vec<DVec2> = hull.points().iter().map(|p| DVec2::new(p.x as f64, p.y as f64)).collect();
                 let (area, centroid, polar) = polygon_area_properties(&ccw);
                 let size = ccw.iter().map(|v| (*v - centroid).length()).fold(0.0, f64::max);
@@ -195,7 +202,8 @@ impl Bodies {
             let rot = DVec2::from_angle(spec.angle);
             let poly = &mut self.polygons[p as usize];
             poly.vertices.iter_mut().for_each(|v| *v = rot.rotate(*v));
-            let pts: Vec<_> = poly.vertices.iter().map(|v| parry2d::math::Vector::new(v.x as f32, v.y as f32)).collect();
+            let pts: Vec<_> =
+                poly.vertices.iter().map(|v| parry2d::math::Vector::new(v.x as f32, v.y as f32)).collect();
             poly.parry = ConvexPolygon::from_convex_polyline(pts).ok_or("degenerate polygon after rotation")?;
         }
         self.bounding_radius.push(bounding);
@@ -254,7 +262,8 @@ impl Bodies {
     }
 
     pub fn mean_diameter(&self) -> f64 {
-        let dynamic: Vec<f64> = (0..self.len()).filter(|&k| self.inv_mass[k] > 0.0).map(|k| self.radius_of(k)).collect();
+        let dynamic: Vec<f64> =
+            (0..self.len()).filter(|&k| self.inv_mass[k] > 0.0).map(|k| self.radius_of(k)).collect();
         if dynamic.is_empty() {
             return 0.0;
         }

@@ -9,7 +9,10 @@ use super::PolygonShape;
 #[derive(Clone, Debug)]
 pub enum WallShape {
     /// A two-sided segment, endpoints in the wall frame.
-    Segment { a: DVec2, b: DVec2 },
+    Segment {
+        a: DVec2,
+        b: DVec2,
+    },
     Polygon(PolygonShape),
 }
 

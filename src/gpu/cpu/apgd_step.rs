@@ -1,6 +1,14 @@
 //! Mirror of `shaders/apgd_step.wgsl`: next = Π_box(y − g/L), diff = next − γ.
 
-pub fn apgd_step(scalars: &[f32], g: &[[f32; 2]], y: &[[f32; 2]], gamma: &[[f32; 2]], s: &[f32], next: &mut [[f32; 2]], diff: &mut [[f32; 2]]) {
+pub fn apgd_step(
+    scalars: &[f32],
+    g: &[[f32; 2]],
+    y: &[[f32; 2]],
+    gamma: &[[f32; 2]],
+    s: &[f32],
+    next: &mut [[f32; 2]],
+    diff: &mut [[f32; 2]],
+) {
     for a in 0..s.len() {
         let x = [y[a][0] - scalars[4] * g[a][0], y[a][1] - scalars[4] * g[a][1]];
         let n = [x[0].max(0.0), x[1].clamp(-s[a], s[a])];

@@ -1,6 +1,14 @@
 //! Mirror of `shaders/cpg_gradient.wgsl`: tangent-cone projections w (of −s∘u) and z (of d).
 
-pub fn cpg_gradient(u: &[[f32; 2]], scale: &[[f32; 2]], d: &[[f32; 2]], status: &[u32], mu: &[f32], w: &mut [[f32; 2]], z: &mut [[f32; 2]]) {
+pub fn cpg_gradient(
+    u: &[[f32; 2]],
+    scale: &[[f32; 2]],
+    d: &[[f32; 2]],
+    status: &[u32],
+    mu: &[f32],
+    w: &mut [[f32; 2]],
+    z: &mut [[f32; 2]],
+) {
     for a in 0..mu.len() {
         let g = [-scale[a][0] * u[a][0], -scale[a][1] * u[a][1]];
         let p = d[a];

@@ -1,6 +1,13 @@
 //! Mirror of `shaders/cpg_update.wgsl`: projection with status memory of r + α d.
 
-pub fn cpg_update(scalars: &[f32], d: &[[f32; 2]], mu: &[f32], r: &mut [[f32; 2]], status: &mut [u32], changed: &mut [f32]) {
+pub fn cpg_update(
+    scalars: &[f32],
+    d: &[[f32; 2]],
+    mu: &[f32],
+    r: &mut [[f32; 2]],
+    status: &mut [u32],
+    changed: &mut [f32],
+) {
     let alpha = scalars[6];
     for a in 0..mu.len() {
         let x = [r[a][0] + alpha * d[a][0], r[a][1] + alpha * d[a][1]];

@@ -1,21 +1,21 @@
 //! CPU mirrors of the WGSL kernels, one file per kernel and named the same (as vello does), in
 //! f32 with the kernels' order of operations, so that every GPU stage can be checked on its own.
 
+pub mod apgd_momentum;
+pub mod apgd_rebox;
+pub mod apgd_scalars;
+pub mod apgd_step;
 pub mod body_accumulate;
 pub mod bsr_product;
 pub mod contact_gather;
-pub mod jacobi_update;
-pub mod nlgs_colour;
-pub mod nlgs_colour_bsr;
-pub mod single_contact;
 pub mod cpg_direction;
 pub mod cpg_gradient;
 pub mod cpg_restart;
 pub mod cpg_scalars;
 pub mod cpg_update;
+pub mod jacobi_update;
+pub mod nlgs_colour;
+pub mod nlgs_colour_bsr;
 pub mod reduce_dot;
 pub mod reduce_final;
-pub mod apgd_momentum;
-pub mod apgd_rebox;
-pub mod apgd_scalars;
-pub mod apgd_step;
+pub mod single_contact;
