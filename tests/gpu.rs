@@ -414,6 +414,19 @@ fn reductions_cpg_and_apgd_stages_match_their_mirrors() {
     let mut d_cpu = d.clone();
     cpu::cpg_restart::cpg_restart(&scalars, &w0, &mut d_cpu);
     assert_close(&floats(&out[0]), d_cpu.as_flattened(), "cpg_restart");
+    // Natural-map residuals (the on-GPU error estimate).
+    let out = stages::run_raw(
+        &ctx,
+        |k: &Kernels| &k.natural_map,
+        &[&b(&r), &b(&u), bytemuck::cast_slice(&mu), &b(&w0)],
+        &[],
+        g,
+        &[3],
+    )
+    .unwrap();
+    let mut f_cpu = w0.clone();
+    cpu::natural_map::natural_map(&r, &u, &mu, &mut f_cpu);
+    assert_close(&floats(&out[0]), f_cpu.as_flattened(), "natural_map");
     // APGD stages.
     let s_thr: Vec<f32> = (0..nc).map(|_| rng.gen_range(0.0..0.5)).collect();
     let mut sc = [0.0f32; 8];

@@ -41,6 +41,7 @@ pub struct Kernels {
     pub apgd_scalars: wgpu::ComputePipeline,
     pub apgd_momentum: wgpu::ComputePipeline,
     pub apgd_rebox: wgpu::ComputePipeline,
+    pub natural_map: wgpu::ComputePipeline,
 }
 
 const SINGLE_CONTACT: &str = include_str!("../../shaders/single_contact.wgsl");
@@ -86,6 +87,12 @@ impl Kernels {
             apgd_scalars: pipeline(ctx, "apgd_scalars", include_str!("../../shaders/apgd_scalars.wgsl"), &[]),
             apgd_momentum: pipeline(ctx, "apgd_momentum", include_str!("../../shaders/apgd_momentum.wgsl"), &[]),
             apgd_rebox: pipeline(ctx, "apgd_rebox", include_str!("../../shaders/apgd_rebox.wgsl"), &[]),
+            natural_map: pipeline(
+                ctx,
+                "natural_map",
+                &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/natural_map.wgsl")),
+                &[],
+            ),
         }
     }
 }
