@@ -14,6 +14,7 @@ pub mod problem;
 pub mod scene;
 pub mod solvers;
 pub mod stepping;
+pub mod sweep;
 pub mod world;
 
 pub use problem::ContactProblem;

@@ -2,6 +2,7 @@
 
 mod bench;
 mod run;
+mod sweep;
 
 use crate::io::report::{summary_line, SolveOutput};
 use crate::io::siconos::{read_fc2d, write_fc2d, Storage};
@@ -92,6 +93,10 @@ enum Command {
     Solve(SolveArgs),
     /// CPU vs GPU timings (W product, Jacobi iteration) on lattice packings of growing size.
     Bench(bench::BenchArgs),
+    /// Work-precision data of every solver × device: CSV, plots, performance profiles, table.
+    Sweep(sweep::SweepArgs),
+    /// Iterations to tolerance vs the friction coefficient on a scene's first step.
+    FrictionStudy(sweep::FrictionArgs),
     /// Write a built-in problem as a Siconos fc2d file.
     Generate {
         #[arg(value_enum)]
@@ -132,6 +137,8 @@ fn run(cli: Cli) -> Result<()> {
         Command::Run(args) => run::run_command(args),
         Command::Solve(args) => solve_command(args),
         Command::Bench(args) => bench::bench_command(args),
+        Command::Sweep(args) => sweep::sweep_command(args),
+        Command::FrictionStudy(args) => sweep::friction_command(args),
         Command::Generate { kind, out, n, mass_ratio, nx, ny, mu, seed, storage } => {
             if !(mu.is_finite() && mu >= 0.0) {
                 bail!("--mu {mu}: the friction coefficient must be finite and >= 0");

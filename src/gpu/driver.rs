@@ -77,7 +77,7 @@ pub fn iterate(
             break;
         }
         if iterations - improved_at >= STALLED_ITERATIONS.max(improved_at) {
-            stop_reason = format!("not converged: stalled at {best:.3e} (the f32 floor of this problem on the GPU)");
+            stop_reason = format!("not converged: stalled near {mark:.3e} (the f32 floor of this problem on the GPU)");
             break;
         }
         let k = batch.min(opts.max_iter - iterations);

@@ -2,6 +2,7 @@
 //! summary.json, VTK time series, PNG pictures).
 
 pub mod picture;
+pub mod plots;
 pub mod report;
 pub mod run_output;
 pub mod siconos;

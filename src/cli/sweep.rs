@@ -1,0 +1,288 @@
+//! `moreau sweep` (work-precision data, plots, performance profiles, time-to-tolerance table)
+//! and `moreau friction-study` (iterations to tolerance vs μ on a scene's first step).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+
+use crate::gpu::GpuContext;
+use crate::io::plots::{font_available, write_chart, Chart, Series};
+use crate::io::siconos::read_fc2d;
+use crate::problem::ContactProblem;
+use crate::scene;
+use crate::solvers::{solve, SolverKind, SolverOptions};
+use crate::stepping::Simulation;
+use crate::sweep::{markdown_table, profile::profiles, run_one, Device, Run};
+
+#[derive(clap::Args)]
+pub struct SweepArgs {
+    /// A problem file (Siconos fc2d), a directory of them, or a scene (.toml).
+    target: PathBuf,
+    #[arg(long, value_delimiter = ',', default_values_t = [SolverKind::Nlgs, SolverKind::Pcpg, SolverKind::Cpg, SolverKind::Jacobi, SolverKind::Apgd, SolverKind::Latin])]
+    solvers: Vec<SolverKind>,
+    /// cpu, gpu or both.
+    #[arg(long, value_delimiter = ',', default_values_t = ["cpu".to_string()])]
+    devices: Vec<String>,
+    #[arg(long, value_delimiter = ',', default_values_t = [1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8])]
+    tols: Vec<f64>,
+    #[arg(long, default_value_t = 20_000)]
+    max_iter: usize,
+    /// Tolerance of the performance profile (default: the middle of --tols).
+    #[arg(long)]
+    profile_tol: Option<f64>,
+    /// For a scene: the steps whose problems are swept.
+    #[arg(long, value_delimiter = ',', default_values_t = [1usize])]
+    scene_steps: Vec<usize>,
+    #[arg(long, default_value = "out/sweep")]
+    out: PathBuf,
+}
+
+/// The problems of a target: files, a directory, or steps of a scene (simulated on the CPU).
+fn problems_of(target: &Path, scene_steps: &[usize]) -> Result<Vec<(String, ContactProblem)>> {
+    let stem = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    if target.is_dir() {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(target)
+            .with_context(|| format!("reading {}", target.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|e| e == "dat"))
+            .collect();
+        files.sort();
+        if files.is_empty() {
+            bail!("{}: no .dat problem files", target.display());
+        }
+        return files.iter().map(|f| Ok((stem(f), read_fc2d(f)?))).collect();
+    }
+    if target.extension().is_some_and(|e| e == "toml") {
+        let s = scene::load(target)?;
+        let last = scene_steps.iter().copied().max().unwrap_or(1).max(1);
+        let name = s.name.clone();
+        let mut sim = Simulation::new(s.world, s.settings)?;
+        sim.keep_problems(true);
+        let mut out = Vec::new();
+        for step in 1..=last {
+            sim.step()?;
+            if scene_steps.contains(&step) {
+                match sim.last_problem() {
+                    Some(p) => out.push((format!("{name}@{step}"), p.clone())),
+                    None => eprintln!("warning: {name} step {step} has no contact"),
+                }
+            }
+        }
+        return Ok(out);
+    }
+    Ok(vec![(stem(target), read_fc2d(target)?)])
+}
+
+fn write_csv<T: serde::Serialize>(path: &Path, rows: impl IntoIterator<Item = T>) -> Result<()> {
+    let mut w = csv::Writer::from_path(path).with_context(|| format!("creating {}", path.display()))?;
+    for r in rows {
+        w.serialize(r)?;
+    }
+    w.flush()?;
+    Ok(())
+}
+
+#[derive(serde::Serialize)]
+struct HistoryRow<'a> {
+    problem: &'a str,
+    solver: &'a str,
+    device: &'a str,
+    iteration: usize,
+    seconds: f64,
+    w_products: usize,
+    error: f64,
+}
+
+pub fn sweep_command(a: SweepArgs) -> Result<()> {
+    if a.tols.is_empty() || a.tols.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
+        bail!("--tols must be positive numbers");
+    }
+    let mut tols = a.tols.clone();
+    tols.sort_by(|x, y| y.total_cmp(x));
+    let devices: Vec<Device> = a
+        .devices
+        .iter()
+        .map(|d| match d.as_str() {
+            "cpu" => Ok(Device::Cpu),
+            "gpu" => Ok(Device::Gpu),
+            other => bail!("--devices: unknown device {other:?} (cpu, gpu)"),
+        })
+        .collect::<Result<_>>()?;
+    let gpu = if devices.contains(&Device::Gpu) {
+        let ctx = GpuContext::new()?;
+        eprintln!("gpu: {}", ctx.describe());
+        Some(ctx)
+    } else {
+        None
+    };
+    let problems = problems_of(&a.target, &a.scene_steps)?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let tightest = *tols.last().unwrap();
+    let mut runs: Vec<Run> = Vec::new();
+    for (name, p) in &problems {
+        for &solver in &a.solvers {
+            for &device in &devices {
+                if device == Device::Gpu && !crate::gpu::supports(solver) {
+                    eprintln!("{name}: {} has no GPU version, skipped on the gpu", solver.name());
+                    continue;
+                }
+                let run = run_one(name, p, solver, device, gpu.as_ref(), tightest, a.max_iter)?;
+                eprintln!(
+                    "{name} ({} contacts): {} on {}: error {:.2e} after {} its, {:.3} s ({})",
+                    p.n_contacts(),
+                    solver.name(),
+                    device.name(),
+                    run.error,
+                    run.iterations,
+                    run.seconds,
+                    run.stop_reason
+                );
+                runs.push(run);
+            }
+        }
+    }
+    write_csv(&a.out.join("work_precision.csv"), runs.iter().flat_map(|r| tols.iter().map(|&t| r.at(t))))?;
+    write_csv(
+        &a.out.join("histories.csv"),
+        runs.iter().flat_map(|r| {
+            r.history.iter().map(|h| HistoryRow {
+                problem: &r.problem,
+                solver: r.solver.name(),
+                device: r.device.name(),
+                iteration: h.iteration,
+                seconds: h.seconds,
+                w_products: h.w_products,
+                error: h.error,
+            })
+        }),
+    )?;
+    let table = markdown_table(&runs, &tols);
+    std::fs::write(a.out.join("time_to_tol.md"), &table)?;
+    println!("{table}");
+    let profile_tol = a.profile_tol.unwrap_or(tols[tols.len() / 2]);
+    let profile = profiles(&runs, profile_tol);
+    write_csv(
+        &a.out.join("profile.csv"),
+        profile.iter().flat_map(|(label, pts)| pts.iter().map(move |(tau, rho)| (label.clone(), *tau, *rho))),
+    )?;
+    if font_available() {
+        for (name, _) in &problems {
+            let series: Vec<Series> = runs
+                .iter()
+                .filter(|r| &r.problem == name)
+                .map(|r| {
+                    let pts = r.history.iter().filter(|h| h.seconds > 0.0).map(|h| (h.seconds, h.error)).collect();
+                    (format!("{} {}", r.solver.name(), r.device.name()), pts)
+                })
+                .collect();
+            let title = format!("{name}: error vs time");
+            let stem = a.out.join(format!("work_precision_{}", name.replace(['/', '@'], "_")));
+            write_chart(&stem, &Chart { title: &title, x_label: "seconds", y_label: "error", log_x: true, log_y: true, series: &series })?;
+        }
+        let title = format!("performance profile at tol {profile_tol:.0e} ({} problems)", problems.len());
+        write_chart(
+            &a.out.join("profile"),
+            &Chart { title: &title, x_label: "τ (time / best time)", y_label: "fraction solved", log_x: true, log_y: false, series: &profile },
+        )?;
+    } else {
+        eprintln!("warning: no font for chart text (install fonts-dejavu-core or set MOREAU_FONT): CSV only");
+    }
+    eprintln!("outputs in {}", a.out.display());
+    Ok(())
+}
+
+#[derive(clap::Args)]
+pub struct FrictionArgs {
+    /// Scene whose first step is solved (the founding paper uses a box compaction).
+    scene: PathBuf,
+    #[arg(long, value_delimiter = ',', default_values_t = [0.0, 0.1, 0.2, 0.3, 0.5, 0.8])]
+    mus: Vec<f64>,
+    #[arg(long, value_delimiter = ',', default_values_t = [SolverKind::Nlgs, SolverKind::Cpg, SolverKind::Pcpg])]
+    solvers: Vec<SolverKind>,
+    #[arg(long, default_value_t = 1e-4)]
+    tol: f64,
+    #[arg(long, default_value_t = 100_000)]
+    max_iter: usize,
+    #[arg(long, default_value = "out/friction")]
+    out: PathBuf,
+}
+
+#[derive(serde::Serialize)]
+struct FrictionRow {
+    mu: f64,
+    solver: String,
+    contacts: usize,
+    converged: bool,
+    iterations: usize,
+    error: f64,
+    seconds: f64,
+}
+
+/// The first-step problem of `scene` with every pair's friction set to `mu`.
+fn first_step_problem(path: &Path, mu: f64) -> Result<ContactProblem> {
+    let mut s = scene::load(path)?;
+    s.world.effects.friction = true;
+    let n = s.world.materials.len();
+    for a in 0..n {
+        for b in a..n {
+            let mut law = s.world.materials.interaction(a, b);
+            law.friction = mu;
+            s.world.materials.set(a, b, law);
+        }
+    }
+    s.settings.options.max_iter = 1; // only the problem is wanted
+    let mut sim = Simulation::new(s.world, s.settings)?;
+    sim.keep_problems(true);
+    sim.step()?;
+    sim.last_problem().cloned().ok_or_else(|| anyhow::anyhow!("{}: the first step has no contact", path.display()))
+}
+
+pub fn friction_command(a: FrictionArgs) -> Result<()> {
+    if a.mus.iter().any(|m| !(m.is_finite() && *m >= 0.0)) {
+        bail!("--mus must be finite and >= 0");
+    }
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let mut rows = Vec::new();
+    for &mu in &a.mus {
+        let p = first_step_problem(&a.scene, mu)?;
+        for &solver in &a.solvers {
+            let opts = SolverOptions { tol: a.tol, max_iter: a.max_iter, ..SolverOptions::default() };
+            let r = solve(&p, solver, &opts, None);
+            eprintln!(
+                "μ = {mu}: {} on {} contacts: {} its, error {:.2e}, {:.3} s{}",
+                solver.name(),
+                p.n_contacts(),
+                r.iterations,
+                r.error,
+                r.seconds,
+                if r.converged { "" } else { " (NOT CONVERGED)" }
+            );
+            rows.push(FrictionRow {
+                mu,
+                solver: solver.name().into(),
+                contacts: p.n_contacts(),
+                converged: r.converged,
+                iterations: r.iterations,
+                error: r.error,
+                seconds: r.seconds,
+            });
+        }
+    }
+    write_csv(&a.out.join("friction_study.csv"), rows.iter())?;
+    let series: Vec<Series> = a
+        .solvers
+        .iter()
+        .map(|s| (s.name().to_string(), rows.iter().filter(|r| r.solver == s.name()).map(|r| (r.mu, r.iterations as f64)).collect()))
+        .collect();
+    if font_available() {
+        let title = format!("iterations to {:.0e} vs friction, first step of {}", a.tol, a.scene.display());
+        write_chart(
+            &a.out.join("friction_study"),
+            &Chart { title: &title, x_label: "μ", y_label: "iterations", log_x: false, log_y: true, series: &series },
+        )?;
+    } else {
+        eprintln!("warning: no font for chart text (install fonts-dejavu-core or set MOREAU_FONT): CSV only");
+    }
+    eprintln!("outputs in {}", a.out.display());
+    Ok(())
+}

@@ -1,0 +1,141 @@
+//! Line charts (plotters) as SVG and PNG: work-precision curves, performance profiles, the
+//! friction study. Text needs a TrueType font: DejaVu Sans is looked for where Debian
+//! (fonts-dejavu-core) and other systems put it, or in $MOREAU_FONT; without one, no chart is
+//! drawn and the caller says so (the CSV files carry the same data).
+
+use std::path::Path;
+use std::sync::OnceLock;
+
+use anyhow::{anyhow, bail, Result};
+use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+use plotters::prelude::*;
+
+const FONT_PATHS: [&str; 4] = [
+    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/TTF/DejaVuSans.ttf",
+    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
+    "/Library/Fonts/Arial.ttf",
+];
+
+/// Registers a font once; false when none was found.
+pub fn font_available() -> bool {
+    static FOUND: OnceLock<bool> = OnceLock::new();
+    *FOUND.get_or_init(|| {
+        let mut candidates: Vec<String> = std::env::var("MOREAU_FONT").into_iter().collect();
+        candidates.extend(FONT_PATHS.iter().map(|s| s.to_string()));
+        for path in candidates {
+            if let Ok(bytes) = std::fs::read(&path) {
+                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+                if plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok() {
+                    return true;
+                }
+            }
+        }
+        false
+    })
+}
+
+/// A series: label and (x, y) points.
+pub type Series = (String, Vec<(f64, f64)>);
+
+pub struct Chart<'a> {
+    pub title: &'a str,
+    pub x_label: &'a str,
+    pub y_label: &'a str,
+    pub log_x: bool,
+    pub log_y: bool,
+    pub series: &'a [Series],
+}
+
+fn bounds(series: &[Series], log: bool, pick: fn(&(f64, f64)) -> f64) -> (f64, f64) {
+    let values = series.iter().flat_map(|(_, p)| p.iter().map(pick)).filter(|v| v.is_finite() && (!log || *v > 0.0));
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    if !lo.is_finite() {
+        return (1.0, 10.0);
+    }
+    if log {
+        let (lo, hi) = if hi / lo < 10.0 { (lo / 3.0, hi * 3.0) } else { (lo, hi) };
+        (lo, hi)
+    } else {
+        let pad = ((hi - lo) * 0.05).max(1e-12);
+        (lo - pad, hi + pad)
+    }
+}
+
+fn draw<DB: DrawingBackend, X, Y>(root: DrawingArea<DB, plotters::coord::Shift>, c: &Chart, x: X, y: Y) -> Result<()>
+where
+    X: AsRangedCoord<Value = f64>,
+    Y: AsRangedCoord<Value = f64>,
+    X::CoordDescType: ValueFormatter<f64>,
+    Y::CoordDescType: ValueFormatter<f64>,
+    DB::ErrorType: 'static,
+{
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("{e:?}");
+    root.fill(&WHITE).map_err(e)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(c.title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x, y)
+        .map_err(e)?;
+    let fmt = |log: bool| move |v: &f64| if log { format!("{v:.0e}") } else { format!("{v}") };
+    chart
+        .configure_mesh()
+        .x_desc(c.x_label)
+        .y_desc(c.y_label)
+        .x_label_formatter(&fmt(c.log_x))
+        .y_label_formatter(&fmt(c.log_y))
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(e)?;
+    for (k, (label, points)) in c.series.iter().enumerate() {
+        let color = Palette99::pick(k).to_rgba();
+        let pts: Vec<(f64, f64)> = points
+            .iter()
+            .copied()
+            .filter(|(x, y)| x.is_finite() && y.is_finite() && (!c.log_x || *x > 0.0) && (!c.log_y || *y > 0.0))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(pts, color.stroke_width(2)))
+            .map_err(e)?
+            .label(label.as_str())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 13))
+        .draw()
+        .map_err(e)?;
+    root.present().map_err(e)?;
+    Ok(())
+}
+
+fn draw_any<DB: DrawingBackend>(root: DrawingArea<DB, plotters::coord::Shift>, c: &Chart) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let (x0, x1) = bounds(c.series, c.log_x, |p| p.0);
+    let (y0, y1) = bounds(c.series, c.log_y, |p| p.1);
+    match (c.log_x, c.log_y) {
+        (true, true) => draw(root, c, (x0..x1).log_scale(), (y0..y1).log_scale()),
+        (true, false) => draw(root, c, (x0..x1).log_scale(), y0..y1),
+        (false, true) => draw(root, c, x0..x1, (y0..y1).log_scale()),
+        (false, false) => draw(root, c, x0..x1, y0..y1),
+    }
+}
+
+/// Writes `stem.svg` and `stem.png`.
+pub fn write_chart(stem: &Path, c: &Chart) -> Result<()> {
+    if !font_available() {
+        bail!("no TrueType font found for chart text (install fonts-dejavu-core or set MOREAU_FONT)");
+    }
+    let svg = stem.with_extension("svg");
+    draw_any(SVGBackend::new(&svg, (900, 600)).into_drawing_area(), c)?;
+    let png = stem.with_extension("png");
+    draw_any(BitMapBackend::new(&png, (900, 600)).into_drawing_area(), c)?;
+    Ok(())
+}

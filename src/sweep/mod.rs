@@ -1,0 +1,153 @@
+//! What accuracy costs in time (notes §7.4): every solver × device on a set of problems, each
+//! solved once to the tightest tolerance while its error history (f64, the core's measure) is
+//! recorded against wall time and W-products; the time to each tolerance is read off that
+//! history. Also the Dolan–Moré performance profiles (`profile.rs`).
+
+pub mod profile;
+
+use crate::gpu::GpuContext;
+use crate::problem::ContactProblem;
+use crate::solvers::{solve, HistoryPoint, SolveReport, SolverKind, SolverOptions};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Device {
+    Cpu,
+    Gpu,
+}
+
+impl Device {
+    pub fn name(self) -> &'static str {
+        match self {
+            Device::Cpu => "cpu",
+            Device::Gpu => "gpu",
+        }
+    }
+}
+
+/// One solver on one device on one problem: its history and its final state.
+#[derive(Clone, Debug)]
+pub struct Run {
+    pub problem: String,
+    pub contacts: usize,
+    pub solver: SolverKind,
+    pub device: Device,
+    pub history: Vec<HistoryPoint>,
+    pub converged: bool,
+    pub iterations: usize,
+    pub error: f64,
+    pub seconds: f64,
+    pub stop_reason: String,
+}
+
+/// One row of `work_precision.csv`: a run judged at one tolerance.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Row {
+    pub problem: String,
+    pub contacts: usize,
+    pub solver: String,
+    pub device: String,
+    pub tol: f64,
+    pub converged: bool,
+    pub iterations: usize,
+    pub error: f64,
+    pub seconds: f64,
+    pub w_products: usize,
+}
+
+impl Run {
+    /// The first point of the history at or below `tol` (a solve judged at that tolerance), or
+    /// the final state, not converged.
+    pub fn at(&self, tol: f64) -> Row {
+        let hit = self.history.iter().find(|h| h.error <= tol);
+        let last = self.history.last();
+        let (converged, point) = match hit {
+            Some(h) => (true, *h),
+            None => (
+                false,
+                HistoryPoint {
+                    iteration: self.iterations,
+                    seconds: self.seconds,
+                    w_products: last.map(|h| h.w_products).unwrap_or(0),
+                    error: self.error,
+                },
+            ),
+        };
+        Row {
+            problem: self.problem.clone(),
+            contacts: self.contacts,
+            solver: self.solver.name().into(),
+            device: self.device.name().into(),
+            tol,
+            converged,
+            iterations: point.iteration,
+            error: point.error,
+            seconds: point.seconds,
+            w_products: point.w_products,
+        }
+    }
+}
+
+/// Solves `problem` with `solver` on `device` to `tol` (the tightest of the sweep), recording the
+/// error history: every iteration up to 2,000 iterations, then about 1,000 points in all.
+pub fn run_one(
+    name: &str,
+    problem: &ContactProblem,
+    solver: SolverKind,
+    device: Device,
+    gpu: Option<&GpuContext>,
+    tol: f64,
+    max_iter: usize,
+) -> Result<Run, crate::gpu::GpuError> {
+    let opts = SolverOptions { tol, max_iter, history_every: (max_iter / 1000).max(1), ..SolverOptions::default() };
+    let report: SolveReport = match (device, gpu) {
+        (Device::Cpu, _) => solve(problem, solver, &opts, None),
+        (Device::Gpu, Some(ctx)) => crate::gpu::solve(ctx, problem, solver, &opts, None)?,
+        (Device::Gpu, None) => return Err(crate::gpu::GpuError::NoAdapter("no adapter for the GPU column".into())),
+    };
+    let mut history = report.history.clone();
+    // The history is monotone in time; make it end on the returned state.
+    if history.last().is_none_or(|h| h.iteration != report.iterations) {
+        history.push(HistoryPoint {
+            iteration: report.iterations,
+            seconds: report.seconds,
+            w_products: report.w_products,
+            error: report.error,
+        });
+    }
+    Ok(Run {
+        problem: name.to_string(),
+        contacts: problem.n_contacts(),
+        solver,
+        device,
+        history,
+        converged: report.converged,
+        iterations: report.iterations,
+        error: report.error,
+        seconds: report.seconds,
+        stop_reason: report.stop_reason,
+    })
+}
+
+/// Markdown table of the time to each tolerance (– where it was not reached).
+pub fn markdown_table(runs: &[Run], tols: &[f64]) -> String {
+    let mut s = String::from("| problem | solver | device |");
+    for t in tols {
+        s.push_str(&format!(" {t:.0e} |"));
+    }
+    s.push_str("\n|---|---|---|");
+    s.push_str(&"---|".repeat(tols.len()));
+    s.push('\n');
+    for r in runs {
+        s.push_str(&format!("| {} | {} | {} |", r.problem, r.solver.name(), r.device.name()));
+        for &t in tols {
+            let row = r.at(t);
+            if row.converged {
+                s.push_str(&format!(" {:.3} s ({} its) |", row.seconds, row.iterations));
+            } else {
+                s.push_str(" – |");
+            }
+        }
+        s.push('\n');
+    }
+    s
+}
