@@ -19,13 +19,27 @@ fn sweep_writes_work_precision_data_profiles_and_a_table() {
     let dir = temp("sweep");
     std::fs::create_dir_all(&dir).unwrap();
     // A directory of two generated problems.
-    for (name, args) in [("lattice.dat", vec!["lattice", "--nx", "20", "--ny", "8"]), ("column.dat", vec!["heavy-column", "--n", "15", "--mass-ratio", "100"])] {
+    for (name, args) in [
+        ("lattice.dat", vec!["lattice", "--nx", "20", "--ny", "8"]),
+        ("column.dat", vec!["heavy-column", "--n", "15", "--mass-ratio", "100"]),
+    ] {
         let o = moreau().arg("generate").args(&args).arg("--out").arg(dir.join(name)).output().unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
     let out = dir.join("out");
     let o = moreau()
-        .args(["sweep", "--solvers", "nlgs,pcpg,jacobi", "--devices", "cpu", "--tols", "1e-2,1e-4,1e-6", "--max-iter", "5000", "--out"])
+        .args([
+            "sweep",
+            "--solvers",
+            "nlgs,pcpg,jacobi",
+            "--devices",
+            "cpu",
+            "--tols",
+            "1e-2,1e-4,1e-6",
+            "--max-iter",
+            "5000",
+            "--out",
+        ])
         .arg(&out)
         .arg(&dir)
         .output()
@@ -41,7 +55,8 @@ fn sweep_writes_work_precision_data_profiles_and_a_table() {
     assert_eq!(rows.len(), 2 * 3 * 3, "problems × solvers × tolerances");
     let col = |name: &str| header.iter().position(|c| *c == name).unwrap();
     for r in &rows {
-        let (tol, err, conv): (f64, f64, bool) = (r[col("tol")].parse().unwrap(), r[col("error")].parse().unwrap(), r[col("converged")] == "true");
+        let (tol, err, conv): (f64, f64, bool) =
+            (r[col("tol")].parse().unwrap(), r[col("error")].parse().unwrap(), r[col("converged")] == "true");
         assert_eq!(conv, err <= tol, "{r:?}");
     }
     // Tighter tolerances never take less time or fewer iterations.
@@ -93,7 +108,12 @@ region = { min = [0.0, 0.0], max = [0.05, 0.1] }
     )
     .unwrap();
     let out = dir.join("out");
-    let o = moreau().args(["friction-study", "--mus", "0,0.3,0.8", "--tol", "1e-4", "--max-iter", "20000", "--out"]).arg(&out).arg(&scene).output().unwrap();
+    let o = moreau()
+        .args(["friction-study", "--mus", "0,0.3,0.8", "--tol", "1e-4", "--max-iter", "20000", "--out"])
+        .arg(&out)
+        .arg(&scene)
+        .output()
+        .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let csv = std::fs::read_to_string(out.join("friction_study.csv")).unwrap();
     let rows: Vec<&str> = csv.lines().skip(1).collect();

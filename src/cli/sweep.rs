@@ -177,12 +177,29 @@ pub fn sweep_command(a: SweepArgs) -> Result<()> {
                 .collect();
             let title = format!("{name}: error vs time");
             let stem = a.out.join(format!("work_precision_{}", name.replace(['/', '@'], "_")));
-            write_chart(&stem, &Chart { title: &title, x_label: "seconds", y_label: "error", log_x: true, log_y: true, series: &series })?;
+            write_chart(
+                &stem,
+                &Chart {
+                    title: &title,
+                    x_label: "seconds",
+                    y_label: "error",
+                    log_x: true,
+                    log_y: true,
+                    series: &series,
+                },
+            )?;
         }
         let title = format!("performance profile at tol {profile_tol:.0e} ({} problems)", problems.len());
         write_chart(
             &a.out.join("profile"),
-            &Chart { title: &title, x_label: "τ (time / best time)", y_label: "fraction solved", log_x: true, log_y: false, series: &profile },
+            &Chart {
+                title: &title,
+                x_label: "τ (time / best time)",
+                y_label: "fraction solved",
+                log_x: true,
+                log_y: false,
+                series: &profile,
+            },
         )?;
     } else {
         eprintln!("warning: no font for chart text (install fonts-dejavu-core or set MOREAU_FONT): CSV only");
@@ -272,7 +289,12 @@ pub fn friction_command(a: FrictionArgs) -> Result<()> {
     let series: Vec<Series> = a
         .solvers
         .iter()
-        .map(|s| (s.name().to_string(), rows.iter().filter(|r| r.solver == s.name()).map(|r| (r.mu, r.iterations as f64)).collect()))
+        .map(|s| {
+            (
+                s.name().to_string(),
+                rows.iter().filter(|r| r.solver == s.name()).map(|r| (r.mu, r.iterations as f64)).collect(),
+            )
+        })
         .collect();
     if font_available() {
         let title = format!("iterations to {:.0e} vs friction, first step of {}", a.tol, a.scene.display());

@@ -9,7 +9,12 @@ pub fn profiles(runs: &[Run], tol: f64) -> Vec<(String, Vec<(f64, f64)>)> {
     problems.sort_unstable();
     problems.dedup();
     let best = |p: &str| {
-        runs.iter().filter(|r| r.problem == p).map(|r| r.at(tol)).filter(|row| row.converged).map(|row| row.seconds).fold(f64::INFINITY, f64::min)
+        runs.iter()
+            .filter(|r| r.problem == p)
+            .map(|r| r.at(tol))
+            .filter(|row| row.converged)
+            .map(|row| row.seconds)
+            .fold(f64::INFINITY, f64::min)
     };
     let bests: Vec<(&str, f64)> = problems.iter().map(|p| (*p, best(p))).collect();
     let mut labels: Vec<String> = runs.iter().map(|r| format!("{} {}", r.solver.name(), r.device.name())).collect();
@@ -32,7 +37,8 @@ pub fn profiles(runs: &[Run], tol: f64) -> Vec<(String, Vec<(f64, f64)>)> {
             (label.clone(), ratios)
         })
         .collect();
-    let tau_max = ratios_of.iter().flat_map(|(_, r)| r.iter().copied()).filter(|x| x.is_finite()).fold(1.0, f64::max) * 1.05;
+    let tau_max =
+        ratios_of.iter().flat_map(|(_, r)| r.iter().copied()).filter(|x| x.is_finite()).fold(1.0, f64::max) * 1.05;
     let n = problems.len().max(1) as f64;
     ratios_of
         .iter_mut()
