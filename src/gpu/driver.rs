@@ -127,7 +127,7 @@ pub fn iterate(
     let mut r = to_f64(&read_back::<[f32; 2]>(ctx, r_buf, nc).map_err(GpuError::Runtime)?);
     land_on_cone(p, &mut r);
     let (mut error, mut u) = error_of(p, &r);
-    if !(error <= best) && best.is_finite() {
+    if (error.is_nan() || error > best) && best.is_finite() {
         r = best_r;
         (error, u) = error_of(p, &r);
     }

@@ -89,7 +89,7 @@ impl<'a> Monitor<'a> {
             }
         };
         let last = self.iteration >= self.opts.max_iter;
-        let history_due = self.opts.history_every > 0 && self.iteration % self.opts.history_every == 0;
+        let history_due = self.opts.history_every > 0 && self.iteration.is_multiple_of(self.opts.history_every);
         match self.opts.criterion {
             StopCriterion::Natural => {
                 let needed = u.is_some() || light <= self.tol_light || last;
