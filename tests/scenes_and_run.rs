@@ -123,6 +123,18 @@ fn bad_scenes_get_errors_naming_line_and_field() {
         "{GOOD}[[generate]]\nkind = \"grid\"\ncount = 1000\nradius = [0.1, 0.1]\nregion = {{ min = [0.0, 0.0], max = [1.0, 1.0] }}\n"
     );
     assert_scene_error(&crowded, 15, &["generate[0].count", "holds 16"]);
+    // Requests no file may make: billions of grains, a huge pyramid or drum.
+    let huge = format!(
+        "{GOOD}[[generate]]\nkind = \"deposition\"\ncount = 4000000000\nradius = [0.1, 0.1]\nregion = {{ min = [0.0, 0.0], max = [1.0, 1.0] }}\n"
+    );
+    assert_scene_error(&huge, 15, &["generate[0].count", "more than"]);
+    let pyramid = format!("{GOOD}[[generate]]\nkind = \"pyramid\"\nbase = 9000000000\nradius = [0.1, 0.1]\nregion = {{ min = [0.0, 0.0], max = [1.0, 1.0] }}\n");
+    assert_scene_error(&pyramid, 15, &["generate[0].base", "more than"]);
+    let drum = GOOD.replace(
+        "segment = [[0.0, 0.0], [1.0, 0.0]]",
+        "drum = { center = [0.0, 0.0], radius = 1.0, sides = 1000000000 }",
+    );
+    assert_scene_error(&drum, 11, &["wall[0].drum", "sides"]);
     // Hostile input: a truncated file, binary junk, an empty file.
     let _ = error_of(&GOOD[..GOOD.len() / 2]);
     let _ = error_of("\u{0}\u{1}\u{2}garbage = [[[");

@@ -15,6 +15,13 @@ use crate::world::{BodySpec, Effect, Effects, Interaction, Materials, PolygonSha
 
 type P = [f64; 2];
 
+/// Bounds on what a scene file may ask a generator for, so that no file can make the parser run
+/// out of memory or time.
+const MAX_GENERATED: usize = 5_000_000;
+const MAX_PYRAMID_BASE: usize = 3_000;
+const MAX_DRUM_SIDES: usize = 100_000;
+const MAX_POLYGON_SIDES: usize = 1_000;
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SceneFile {
@@ -426,8 +433,13 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
             parts.push(segment_part(br, tr, c));
         }
         if let Some(d) = &spec.drum {
-            if !(finite(&d.center) && d.radius.is_finite() && d.radius > 0.0 && d.sides >= 3) {
-                return cx.err(w.span(), field("drum"), "needs a finite centre, radius > 0 and sides >= 3");
+            if !(finite(&d.center) && d.radius.is_finite() && d.radius > 0.0 && (3..=MAX_DRUM_SIDES).contains(&d.sides))
+            {
+                return cx.err(
+                    w.span(),
+                    field("drum"),
+                    format!("needs a finite centre, radius > 0 and 3 <= sides <= {MAX_DRUM_SIDES}"),
+                );
             }
             let c = spec.center.map(v).unwrap_or(v(d.center));
             let at = |k: usize| {
@@ -453,11 +465,11 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
                 BodySpec::polygon(v(p.center), p.vertices.iter().map(|x| v(*x)).collect(), material)
             }
             (None, None, Some(r)) => {
-                if r.sides < 3 {
+                if r.sides < 3 || r.sides > MAX_POLYGON_SIDES {
                     return cx.err(
                         b.span(),
                         field("regular.sides"),
-                        format!("{} sides: a polygon needs at least 3", r.sides),
+                        format!("{} sides: a polygon needs 3 to {MAX_POLYGON_SIDES}", r.sides),
                     );
                 }
                 BodySpec::regular_polygon(v(r.center), r.radius, r.sides, 0.0, material)
@@ -493,6 +505,20 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
             return cx.err(g.span(), field("region"), "needs finite min < max");
         }
         let count = match (spec.kind, spec.count, spec.base) {
+            (GenerateKind::Pyramid, _, Some(b)) if b > MAX_PYRAMID_BASE => {
+                return cx.err(
+                    g.span(),
+                    field("base"),
+                    format!("{b} is more than the {MAX_PYRAMID_BASE} a scene may generate"),
+                )
+            }
+            (_, Some(c), _) if c > MAX_GENERATED => {
+                return cx.err(
+                    g.span(),
+                    field("count"),
+                    format!("{c} is more than the {MAX_GENERATED} grains a generator may make"),
+                )
+            }
             (GenerateKind::Pyramid, _, Some(b)) if b >= 1 => b * (b + 1) / 2,
             (GenerateKind::Pyramid, _, _) => return cx.err(g.span(), field("base"), "a pyramid needs base >= 1"),
             (_, Some(c), _) if c >= 1 => c,
@@ -562,12 +588,18 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
                     BodySpec::polygon(*c, square, material)
                 }
                 None => BodySpec::disk(*c, *r, material),
-                Some(s) if s >= 3 => {
+                Some(s) if (3..=MAX_POLYGON_SIDES).contains(&s) => {
                     use rand::Rng;
                     let angle = rng_angle.gen_range(0.0..std::f64::consts::TAU);
                     BodySpec::regular_polygon(*c, *r, s, angle, material)
                 }
-                Some(s) => return cx.err(g.span(), field("sides"), format!("{s} sides: a polygon needs at least 3")),
+                Some(s) => {
+                    return cx.err(
+                        g.span(),
+                        field("sides"),
+                        format!("{s} sides: a polygon needs 3 to {MAX_POLYGON_SIDES}"),
+                    )
+                }
             };
             body.velocity = velocity;
             body.tag = layer as u32;
