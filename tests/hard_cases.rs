@@ -265,3 +265,51 @@ fn a_resting_problem_with_q_zero_stops_at_once() {
         );
     }
 }
+
+#[test]
+fn a_square_lattice_of_equal_disks_redundant_contacts_stays_put() {
+    // Equal disks on a square lattice, touching: four contacts per grain, W singular.
+    let mut s = header(r#""gravity", "friction", "rotation""#, 1e-3, 200, "nlgs", 1e-6, 0.3);
+    s.push_str("[[material]]\nname = \"g\"\ndensity = 1.0\n[[wall]]\ncontainer = { min = [0.0, 0.0], max = [1.0, 2.0] }\n[[generate]]\nkind = \"grid\"\ncount = 100\nradius = [0.05, 0.05]\nspacing = 0.0\nregion = { min = [0.0, 0.0], max = [1.0, 2.0] }\n");
+    let start: Vec<DVec2> = {
+        let sc = moreau::scene::parse(&s, Path::new("lattice")).unwrap();
+        sc.world.bodies.position.clone()
+    };
+    let o = run("square lattice", &s, None);
+    assert!(o.reports.last().unwrap().contacts >= 2 * 100, "{} contacts", o.reports.last().unwrap().contacts);
+    let drift = (0..100).map(|k| o.sim.position(k).distance(start[k])).fold(0.0, f64::max);
+    assert!(drift < 1e-4 * 0.1, "drift {:.2e} of d", drift / 0.1);
+    assert!(o.max_penetration() < 1e-3 * 0.1);
+}
+
+#[test]
+fn a_semicircular_arch_of_voussoirs_stands() {
+    // Nine voussoirs between radii 2 and 2.5, dry joints, μ = 0.6 (thickness / radius = 0.22,
+    // above Heyman's minimum of about 0.11 for a semicircle).
+    let mut s = header(r#""gravity", "friction", "rotation""#, 1e-2, 200, "nlgs", 1e-7, 0.6);
+    s.push_str("[[material]]\nname = \"stone\"\ndensity = 2.0\n[[wall]]\nsegment = [[-5.0, 0.0], [5.0, 0.0]]\n");
+    let n = 9;
+    let (r0, r1) = (2.0f64, 2.5f64);
+    for k in 0..n {
+        let (a0, a1) = (std::f64::consts::PI * k as f64 / n as f64, std::f64::consts::PI * (k + 1) as f64 / n as f64);
+        let pts = [
+            DVec2::from_angle(a0) * r0,
+            DVec2::from_angle(a0) * r1,
+            DVec2::from_angle(a1) * r1,
+            DVec2::from_angle(a1) * r0,
+        ];
+        let c = (pts[0] + pts[1] + pts[2] + pts[3]) / 4.0;
+        let rel: Vec<String> = pts.iter().map(|p| format!("[{}, {}]", p.x - c.x, p.y - c.y)).collect();
+        s.push_str(&format!(
+            "[[body]]\npolygon = {{ center = [{}, {}], vertices = [{}] }}\n",
+            c.x,
+            c.y,
+            rel.join(", ")
+        ));
+    }
+    let key_start = moreau::scene::parse(&s, Path::new("arch")).unwrap().world.bodies.position[4];
+    let o = run("arch", &s, None);
+    let key = o.sim.position(4);
+    assert!((key.y - key_start.y).abs() < 1e-3, "the keystone moved from {key_start:?} to {key:?}");
+    assert!(o.sim.world.kinetic_energy() < 1e-9, "kinetic energy {:e}", o.sim.world.kinetic_energy());
+}
