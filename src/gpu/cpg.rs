@@ -12,18 +12,9 @@ use super::kernels::{bind, groups, storage, uniform};
 use super::layout::to_f32_pairs;
 use super::operator::GpuOperator;
 use super::reduce::{partials_len, Dot};
-use crate::problem::cone::{project_box, status_of, ContactStatus};
+use crate::problem::cone::{project_box, status_of};
 use crate::problem::ContactProblem;
 use crate::solvers::{SolveReport, SolverKind, SolverOptions};
-
-fn status_code(s: ContactStatus) -> u32 {
-    match s {
-        ContactStatus::Open => 0,
-        ContactStatus::Stick => 1,
-        ContactStatus::SlidePositive => 2,
-        ContactStatus::SlideNegative => 3,
-    }
-}
 
 pub fn solve(
     ctx: &GpuContext,
@@ -44,7 +35,7 @@ pub fn solve(
         let ra = project_box([r[2 * a], r[2 * a + 1]], p.mu[a]);
         r[2 * a] = ra[0];
         r[2 * a + 1] = ra[1];
-        status[a] = status_code(status_of(ra, p.mu[a]));
+        status[a] = status_of(ra, p.mu[a]).code();
     }
     let scale: Vec<[f32; 2]> = if preconditioned {
         p.w.diag_blocks()

@@ -28,11 +28,7 @@ pub fn initial_impulses(p: &ContactProblem, r0: Option<&[f64]>) -> Vec<f64> {
         Some(r) if r.len() == 2 * nc && r.iter().all(|x| x.is_finite()) => r.to_vec(),
         _ => vec![0.0; 2 * nc],
     };
-    for a in 0..nc {
-        let ra = project_cone([r[2 * a], r[2 * a + 1]], p.mu[a]);
-        r[2 * a] = ra[0];
-        r[2 * a + 1] = ra[1];
-    }
+    land_on_cone(p, &mut r);
     r
 }
 

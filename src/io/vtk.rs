@@ -12,7 +12,6 @@ use vtkio::model::{
 };
 
 use crate::detection::Antagonist;
-use crate::problem::cone::ContactStatus;
 use crate::stepping::Simulation;
 use crate::world::{BodyShape, WallShape};
 
@@ -34,15 +33,6 @@ fn grid(
             cells: Cells { cell_verts: VertexNumbers::XML { connectivity, offsets }, types },
             data,
         }),
-    }
-}
-
-fn status_code(s: ContactStatus) -> i32 {
-    match s {
-        ContactStatus::Open => 0,
-        ContactStatus::Stick => 1,
-        ContactStatus::SlidePositive => 2,
-        ContactStatus::SlideNegative => 3,
     }
 }
 
@@ -116,7 +106,7 @@ pub fn write_step(sim: &Simulation, dir: &Path, index: usize) -> Result<[PathBuf
                 .with_data(contacts.iter().map(|c| c.impulse[1]).collect::<Vec<f64>>()),
             Attribute::scalars("gap", 1).with_data(contacts.iter().map(|c| c.contact.gap).collect::<Vec<f64>>()),
             Attribute::scalars("status", 1)
-                .with_data(contacts.iter().map(|c| status_code(c.status)).collect::<Vec<i32>>()),
+                .with_data(contacts.iter().map(|c| c.status.code() as i32).collect::<Vec<i32>>()),
         ],
     };
     let types = vec![CellType::Line; contacts.len()];

@@ -13,6 +13,19 @@ pub enum ContactStatus {
     SlideNegative,
 }
 
+impl ContactStatus {
+    /// The numeric code written to files and read by the GPU kernels:
+    /// 0 open, 1 stick, 2 slide with r_t = +μ r_n, 3 slide with r_t = −μ r_n.
+    pub fn code(self) -> u32 {
+        match self {
+            ContactStatus::Open => 0,
+            ContactStatus::Stick => 1,
+            ContactStatus::SlidePositive => 2,
+            ContactStatus::SlideNegative => 3,
+        }
+    }
+}
+
 /// Euclidean projection onto `K_μ`.
 #[inline]
 pub fn project_cone(x: [f64; 2], mu: f64) -> [f64; 2] {
