@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
 use super::driver::{initial_impulses, iterate};
-use super::kernels::{bind, groups, storage};
+use super::kernels::{bind, dispatch, groups, storage};
 use super::layout::to_f32_pairs;
 use super::operator::GpuOperator;
 use super::reduce::{partials_len, Dot};
@@ -76,22 +76,14 @@ pub fn solve(
     let count = Cell::new(0usize);
     iterate(ctx, p, opts, SolverKind::Apgd, start, r, &gamma, 1, |pass| {
         gradient.record(&k, pass);
-        pass.set_pipeline(&k.apgd_step);
-        pass.set_bind_group(0, &step, &[]);
-        pass.dispatch_workgroups(wg, 1, 1);
+        dispatch(pass, &k.apgd_step, &step, wg);
         restart_dot.record(&k, pass);
-        pass.set_pipeline(&k.apgd_scalars);
-        pass.set_bind_group(0, &scalar, &[]);
-        pass.dispatch_workgroups(1, 1, 1);
-        pass.set_pipeline(&k.apgd_momentum);
-        pass.set_bind_group(0, &momentum, &[]);
-        pass.dispatch_workgroups(wg, 1, 1);
+        dispatch(pass, &k.apgd_scalars, &scalar, 1);
+        dispatch(pass, &k.apgd_momentum, &momentum, wg);
         let i = count.get();
         count.set(i + 1);
         if i % every == every - 1 {
-            pass.set_pipeline(&k.apgd_rebox);
-            pass.set_bind_group(0, &rebox, &[]);
-            pass.dispatch_workgroups(wg, 1, 1);
+            dispatch(pass, &k.apgd_rebox, &rebox, wg);
         }
     })
 }

@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
 use super::driver::{initial_impulses, iterate};
-use super::kernels::{bind, groups, storage, uniform};
+use super::kernels::{bind, dispatch, groups, storage, submit, uniform};
 use super::layout::to_f32_pairs;
 use super::operator::GpuOperator;
 use super::reduce::{partials_len, Dot};
@@ -79,34 +79,26 @@ pub fn solve(
     let gradient = bind(ctx, &k.cpg_gradient, &[&u_buf, &scale_buf, &d_buf, &status_buf, &mu_buf, &w_buf, &z_buf]);
     let direction = bind(ctx, &k.cpg_direction, &[&scalars, &w_buf, &z_buf, &d_buf]);
     let g = groups(nc);
-    let run = |pass: &mut wgpu::ComputePass, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, n: u32| {
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, group, &[]);
-        pass.dispatch_workgroups(n, 1, 1);
-    };
     // Start: u = W r + q, w = projected gradient, d = w (β = 0 in a fresh scalars buffer).
-    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cpg start") });
-    {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
-        residual.record(&k, &mut pass);
-        run(&mut pass, &k.cpg_gradient, &gradient, g);
-        run(&mut pass, &k.cpg_direction, &direction, g);
-    }
-    ctx.queue.submit([encoder.finish()]);
+    submit(ctx, "cpg start", |pass| {
+        residual.record(&k, pass);
+        dispatch(pass, &k.cpg_gradient, &gradient, g);
+        dispatch(pass, &k.cpg_direction, &direction, g);
+    });
     iterate(ctx, p, opts, kind, start, r, &r_buf, 2, |pass| {
         dot_ud.record(&k, pass);
         dot_uw.record(&k, pass);
-        run(pass, &k.cpg_scalars, &stages[0].0, 1);
-        run(pass, &k.cpg_restart, &restart, g);
+        dispatch(pass, &k.cpg_scalars, &stages[0].0, 1);
+        dispatch(pass, &k.cpg_restart, &restart, g);
         product.record(&k, pass);
         dot_dy.record(&k, pass);
-        run(pass, &k.cpg_scalars, &stages[1].0, 1);
-        run(pass, &k.cpg_update, &update, g);
+        dispatch(pass, &k.cpg_scalars, &stages[1].0, 1);
+        dispatch(pass, &k.cpg_update, &update, g);
         residual.record(&k, pass);
-        run(pass, &k.cpg_gradient, &gradient, g);
+        dispatch(pass, &k.cpg_gradient, &gradient, g);
         dot_changed.record(&k, pass);
         dot_yw.record(&k, pass);
-        run(pass, &k.cpg_scalars, &stages[2].0, 1);
-        run(pass, &k.cpg_direction, &direction, g);
+        dispatch(pass, &k.cpg_scalars, &stages[2].0, 1);
+        dispatch(pass, &k.cpg_direction, &direction, g);
     })
 }

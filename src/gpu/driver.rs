@@ -8,7 +8,7 @@
 use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
-use super::kernels::{bind, groups, read_back, storage};
+use super::kernels::{bind, dispatch, groups, read_back, storage, submit};
 use super::layout::{to_f32_pairs, to_f64};
 use super::operator::GpuOperator;
 use super::reduce::{partials_len, Dot};
@@ -77,16 +77,11 @@ pub fn iterate(
             break;
         }
         let k = batch.min(opts.max_iter - iterations);
-        let mut encoder =
-            ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(kind.name()) });
-        {
-            let mut pass = encoder
-                .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(kind.name()), timestamp_writes: None });
+        submit(ctx, kind.name(), |pass| {
             for _ in 0..k {
-                record(&mut pass);
+                record(pass);
             }
-        }
-        ctx.queue.submit([encoder.finish()]);
+        });
         iterations += k;
         let estimate = checker.estimate(ctx)?;
         if !estimate.is_finite() {
@@ -188,19 +183,13 @@ impl Checker {
 
     fn estimate(&self, ctx: &GpuContext) -> Result<f64, GpuError> {
         let k = &self.kernels;
-        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("check") });
-        {
-            let mut pass =
-                encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
-            self.operator.record(k, &mut pass);
-            pass.set_pipeline(&k.natural_map);
-            pass.set_bind_group(0, &self.residual, &[]);
-            pass.dispatch_workgroups(self.groups, 1, 1);
+        submit(ctx, "check", |pass| {
+            self.operator.record(k, pass);
+            dispatch(pass, &k.natural_map, &self.residual, self.groups);
             for d in &self.dots {
-                d.record(k, &mut pass);
+                d.record(k, pass);
             }
-        }
-        ctx.queue.submit([encoder.finish()]);
+        });
         let s = read_back::<f32>(ctx, &self.scalars, 3).map_err(GpuError::Runtime)?;
         let (f, r, u) = ((s[0] as f64).sqrt(), (s[1] as f64).sqrt(), (s[2] as f64).sqrt());
         let scale = self.q_norm.max(r).max(u);

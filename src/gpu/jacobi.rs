@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
 use super::driver::{initial_impulses, iterate};
-use super::kernels::{bind, groups, storage};
+use super::kernels::{bind, dispatch, groups, storage};
 use super::layout::to_f32_pairs;
 use super::operator::GpuOperator;
 use crate::problem::ContactProblem;
@@ -33,8 +33,6 @@ pub fn solve(
     let update = bind(ctx, &kernels.jacobi_update, &[&u_buf, &mu_buf, &step_buf, &r_buf]);
     iterate(ctx, p, opts, SolverKind::Jacobi, start, r, &r_buf, 1, |pass| {
         op.record(&kernels, pass);
-        pass.set_pipeline(&kernels.jacobi_update);
-        pass.set_bind_group(0, &update, &[]);
-        pass.dispatch_workgroups(groups(nc), 1, 1);
+        dispatch(pass, &kernels.jacobi_update, &update, groups(nc));
     })
 }

@@ -10,7 +10,7 @@ use bytemuck::{Pod, Zeroable};
 use super::colouring::Colouring;
 use super::context::{GpuContext, GpuError};
 use super::driver::{initial_impulses, iterate};
-use super::kernels::{bind, groups, storage, uniform};
+use super::kernels::{bind, dispatch, groups, storage, submit, uniform};
 use super::layout::{to_f32_pairs, BsrLayout, MatrixFreeLayout};
 use crate::problem::{ContactProblem, Delassus};
 use crate::solvers::{SolveReport, SolverKind, SolverOptions};
@@ -61,16 +61,9 @@ pub fn solve(
             // v = M⁻¹ Bᵀ r of the starting impulses, once.
             let accumulate =
                 bind(ctx, &kernels.body_accumulate, &[&contacts, &start_buf, &list, &inv_mass, &r_buf, &v]);
-            let mut encoder =
-                ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("nlgs start") });
-            {
-                let mut pass =
-                    encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
-                pass.set_pipeline(&kernels.body_accumulate);
-                pass.set_bind_group(0, &accumulate, &[]);
-                pass.dispatch_workgroups(groups(layout.inv_mass.len()), 1, 1);
-            }
-            ctx.queue.submit([encoder.finish()]);
+            submit(ctx, "nlgs start", |pass| {
+                dispatch(pass, &kernels.body_accumulate, &accumulate, groups(layout.inv_mass.len()))
+            });
             let groups_per_colour: Vec<(wgpu::BindGroup, u32)> = ranges(&colouring)
                 .into_iter()
                 .map(|(range, count)| {

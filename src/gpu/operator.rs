@@ -2,7 +2,7 @@
 //! gather) or the block-sparse product, recorded into a compute pass.
 
 use super::context::GpuContext;
-use super::kernels::{bind, groups, storage, Kernels};
+use super::kernels::{bind, dispatch, groups, storage, Kernels};
 use super::layout::{BsrLayout, MatrixFreeLayout};
 use crate::problem::Delassus;
 
@@ -64,17 +64,11 @@ impl GpuOperator {
     pub fn record(&self, kernels: &Kernels, pass: &mut wgpu::ComputePass) {
         match self {
             GpuOperator::MatrixFree { bodies, contacts, accumulate, gather, .. } => {
-                pass.set_pipeline(&kernels.body_accumulate);
-                pass.set_bind_group(0, accumulate, &[]);
-                pass.dispatch_workgroups(groups(*bodies), 1, 1);
-                pass.set_pipeline(&kernels.contact_gather);
-                pass.set_bind_group(0, gather, &[]);
-                pass.dispatch_workgroups(groups(*contacts), 1, 1);
+                dispatch(pass, &kernels.body_accumulate, accumulate, groups(*bodies));
+                dispatch(pass, &kernels.contact_gather, gather, groups(*contacts));
             }
             GpuOperator::Sparse { contacts, product, .. } => {
-                pass.set_pipeline(&kernels.bsr_product);
-                pass.set_bind_group(0, product, &[]);
-                pass.dispatch_workgroups(groups(*contacts), 1, 1);
+                dispatch(pass, &kernels.bsr_product, product, groups(*contacts));
             }
         }
     }

@@ -4,7 +4,7 @@
 
 use super::context::GpuContext;
 use super::cpu::reduce_dot::n_partials;
-use super::kernels::{bind, uniform, Kernels};
+use super::kernels::{bind, dispatch, uniform, Kernels};
 
 /// A bound dot product `scalars[slot] = a · b` over `n` f32 entries.
 pub struct Dot {
@@ -35,12 +35,8 @@ impl Dot {
     }
 
     pub fn record(&self, k: &Kernels, pass: &mut wgpu::ComputePass) {
-        pass.set_pipeline(&k.reduce_dot);
-        pass.set_bind_group(0, &self.first, &[]);
-        pass.dispatch_workgroups(self.groups, 1, 1);
-        pass.set_pipeline(&k.reduce_final);
-        pass.set_bind_group(0, &self.second, &[]);
-        pass.dispatch_workgroups(1, 1, 1);
+        dispatch(pass, &k.reduce_dot, &self.first, self.groups);
+        dispatch(pass, &k.reduce_final, &self.second, 1);
     }
 }
 

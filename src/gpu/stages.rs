@@ -2,21 +2,14 @@
 //! the CPU mirrors in [`super::cpu`], stage by stage.
 
 use super::context::{GpuContext, GpuError};
-use super::kernels::{bind, groups, read_back, storage, Kernels};
+use super::kernels::{bind, dispatch, groups, read_back, storage, submit, Kernels};
 use super::layout::{BsrLayout, MatrixFreeLayout};
 
 /// `r` (2 per contact) and `v` (4 per body) after a stage.
 pub type ImpulsesAndVelocities = (Vec<[f32; 2]>, Vec<[f32; 4]>);
 
 fn run(ctx: &GpuContext, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, n: usize) {
-    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-    {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, group, &[]);
-        pass.dispatch_workgroups(groups(n), 1, 1);
-    }
-    ctx.queue.submit([encoder.finish()]);
+    submit(ctx, "stage", |pass| dispatch(pass, pipeline, group, groups(n)));
 }
 
 pub fn body_accumulate(ctx: &GpuContext, op: &MatrixFreeLayout, r: &[[f32; 2]]) -> Result<Vec<[f32; 4]>, GpuError> {
@@ -166,13 +159,6 @@ pub fn run_raw(
     let unis: Vec<wgpu::Buffer> = uniforms.iter().map(|u| super::kernels::uniform(ctx, "raw", u)).collect();
     let all: Vec<&wgpu::Buffer> = bufs.iter().chain(unis.iter()).collect();
     let group = bind(ctx, pipeline, &all);
-    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-    {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &group, &[]);
-        pass.dispatch_workgroups(workgroups, 1, 1);
-    }
-    ctx.queue.submit([encoder.finish()]);
+    submit(ctx, "stage", |pass| dispatch(pass, pipeline, &group, workgroups));
     read.iter().map(|&i| read_back::<u8>(ctx, &bufs[i], buffers[i].len()).map_err(GpuError::Runtime)).collect()
 }

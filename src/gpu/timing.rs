@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
-use super::kernels::{bind, groups, storage};
+use super::kernels::{bind, dispatch, groups, storage, submit};
 use super::layout::to_f32_pairs;
 use super::operator::GpuOperator;
 use crate::problem::ContactProblem;
@@ -18,15 +18,11 @@ pub struct KernelTimes {
 
 fn run(ctx: &GpuContext, n: usize, mut record: impl FnMut(&mut wgpu::ComputePass)) -> Result<f64, GpuError> {
     let start = Instant::now();
-    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("timing") });
-    {
-        let mut pass =
-            encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("timing"), timestamp_writes: None });
+    submit(ctx, "timing", |pass| {
         for _ in 0..n {
-            record(&mut pass);
+            record(pass);
         }
-    }
-    ctx.queue.submit([encoder.finish()]);
+    });
     ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Runtime(e.to_string()))?;
     Ok(start.elapsed().as_secs_f64() / n as f64)
 }
@@ -47,9 +43,7 @@ pub fn kernel_times(ctx: &GpuContext, p: &ContactProblem, n: usize) -> Result<Ke
     let product = run(ctx, n, |pass| op.record(&kernels, pass))?;
     let jacobi_iteration = run(ctx, n, |pass| {
         op.record(&kernels, pass);
-        pass.set_pipeline(&kernels.jacobi_update);
-        pass.set_bind_group(0, &update, &[]);
-        pass.dispatch_workgroups(groups(nc), 1, 1);
+        dispatch(pass, &kernels.jacobi_update, &update, groups(nc));
     })?;
     Ok(KernelTimes { product, jacobi_iteration })
 }
