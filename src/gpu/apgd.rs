@@ -12,7 +12,7 @@ use super::context::{GpuContext, GpuError};
 use super::driver::{initial_impulses, iterate};
 use super::kernels::{bind, dispatch, groups, storage};
 use super::layout::to_f32_pairs;
-use super::operator::GpuOperator;
+use super::operator::GpuProblem;
 use super::reduce::{partials_len, Dot};
 use crate::problem::{norm, ContactProblem};
 use crate::solvers::{SolveReport, SolverKind, SolverOptions};
@@ -41,8 +41,8 @@ pub fn solve(
 ) -> Result<SolveReport, GpuError> {
     let start = Instant::now();
     let nc = p.n_contacts();
-    let (rotation, friction) = super::specialisation(p);
-    let k = ctx.kernels(rotation, friction);
+    let gp = GpuProblem::upload(ctx, p);
+    let k = &gp.kernels;
     let mut r = initial_impulses(p, r0);
     let thresholds: Vec<f32> = (0..nc).map(|a| (p.mu[a] * r[2 * a].max(0.0)) as f32).collect();
     for a in 0..nc {
@@ -54,30 +54,28 @@ pub fn solve(
     let zeros = vec![[0.0f32; 2]; nc];
     let gamma = storage(ctx, "gamma", &to_f32_pairs(&r));
     let y = storage(ctx, "y", &to_f32_pairs(&r));
-    let q = storage(ctx, "q", &to_f32_pairs(&p.q));
     let g = storage(ctx, "g", &zeros);
     let next = storage(ctx, "next", &zeros);
     let diff = storage(ctx, "diff", &zeros);
     let s = storage(ctx, "s", &thresholds);
-    let mu = storage(ctx, "mu", &p.mu.iter().map(|&m| m as f32).collect::<Vec<_>>());
     let mut init = [0.0f32; 8];
     init[1] = 1.0; // θ
     init[4] = (1.0 / lipschitz) as f32;
     let scalars = storage(ctx, "scalars", &init);
     let partials = storage(ctx, "partials", &vec![0.0f32; partials_len(2 * nc)]);
-    let gradient = GpuOperator::new(ctx, &k, &p.w, &y, &q, &g);
-    let restart_dot = Dot::new(ctx, &k, &g, &diff, 2 * nc, &partials, &scalars, 0);
+    let gradient = gp.product(ctx, &y, &gp.q, &g);
+    let restart_dot = Dot::new(ctx, k, &g, &diff, 2 * nc, &partials, &scalars, 0);
     let step = bind(ctx, &k.apgd_step, &[&scalars, &g, &y, &gamma, &s, &next, &diff]);
     let scalar = bind(ctx, &k.apgd_scalars, &[&scalars]);
     let momentum = bind(ctx, &k.apgd_momentum, &[&scalars, &next, &gamma, &y]);
-    let rebox = bind(ctx, &k.apgd_rebox, &[&mu, &gamma, &y, &s, &scalars]);
+    let rebox = bind(ctx, &k.apgd_rebox, &[&gp.mu, &gamma, &y, &s, &scalars]);
     let wg = groups(nc);
     let every = opts.apgd_threshold_every.max(1);
     let count = Cell::new(0usize);
-    iterate(ctx, p, opts, SolverKind::Apgd, start, r, &gamma, 1, |pass| {
-        gradient.record(&k, pass);
+    iterate(ctx, p, &gp, opts, SolverKind::Apgd, start, r, &gamma, 1, |pass| {
+        gradient.record(k, pass);
         dispatch(pass, &k.apgd_step, &step, wg);
-        restart_dot.record(&k, pass);
+        restart_dot.record(k, pass);
         dispatch(pass, &k.apgd_scalars, &scalar, 1);
         dispatch(pass, &k.apgd_momentum, &momentum, wg);
         let i = count.get();

@@ -10,7 +10,7 @@ use super::context::{GpuContext, GpuError};
 use super::driver::{initial_impulses, iterate};
 use super::kernels::{bind, dispatch, groups, storage, submit, uniform};
 use super::layout::to_f32_pairs;
-use super::operator::GpuOperator;
+use super::operator::GpuProblem;
 use super::reduce::{partials_len, Dot};
 use crate::problem::cone::{project_box, status_of};
 use crate::problem::ContactProblem;
@@ -26,8 +26,8 @@ pub fn solve(
     let start = Instant::now();
     let kind = if preconditioned { SolverKind::Pcpg } else { SolverKind::Cpg };
     let nc = p.n_contacts();
-    let (rotation, friction) = super::specialisation(p);
-    let k = ctx.kernels(rotation, friction);
+    let gp = GpuProblem::upload(ctx, p);
+    let k = &gp.kernels;
     // Start on the box, as the CPU solver does (the driver's cone start is replaced here).
     let mut r = initial_impulses(p, r0);
     let mut status = vec![0u32; nc];
@@ -47,7 +47,6 @@ pub fn solve(
     };
     let zeros = vec![[0.0f32; 2]; nc];
     let r_buf = storage(ctx, "r", &to_f32_pairs(&r));
-    let q_buf = storage(ctx, "q", &to_f32_pairs(&p.q));
     let zero_buf = storage(ctx, "zero", &zeros);
     let u_buf = storage(ctx, "u", &zeros);
     let d_buf = storage(ctx, "d", &zeros);
@@ -57,17 +56,16 @@ pub fn solve(
     let status_buf = storage(ctx, "status", &status);
     let changed_buf = storage(ctx, "changed", &vec![0.0f32; nc]);
     let scale_buf = storage(ctx, "scale", &scale);
-    let mu_buf = storage(ctx, "mu", &p.mu.iter().map(|&m| m as f32).collect::<Vec<_>>());
     let scalars = storage(ctx, "scalars", &[0.0f32; 16]);
     let partials = storage(ctx, "partials", &vec![0.0f32; partials_len(2 * nc)]);
-    let residual = GpuOperator::new(ctx, &k, &p.w, &r_buf, &q_buf, &u_buf);
-    let product = GpuOperator::new(ctx, &k, &p.w, &d_buf, &zero_buf, &y_buf);
+    let residual = gp.product(ctx, &r_buf, &gp.q, &u_buf);
+    let product = gp.product(ctx, &d_buf, &zero_buf, &y_buf);
     let n = 2 * nc;
-    let dot_ud = Dot::new(ctx, &k, &u_buf, &d_buf, n, &partials, &scalars, 0);
-    let dot_uw = Dot::new(ctx, &k, &u_buf, &w_buf, n, &partials, &scalars, 1);
-    let dot_dy = Dot::new(ctx, &k, &d_buf, &y_buf, n, &partials, &scalars, 2);
-    let dot_changed = Dot::new(ctx, &k, &changed_buf, &changed_buf, nc, &partials, &scalars, 3);
-    let dot_yw = Dot::new(ctx, &k, &y_buf, &w_buf, n, &partials, &scalars, 4);
+    let dot_ud = Dot::new(ctx, k, &u_buf, &d_buf, n, &partials, &scalars, 0);
+    let dot_uw = Dot::new(ctx, k, &u_buf, &w_buf, n, &partials, &scalars, 1);
+    let dot_dy = Dot::new(ctx, k, &d_buf, &y_buf, n, &partials, &scalars, 2);
+    let dot_changed = Dot::new(ctx, k, &changed_buf, &changed_buf, nc, &partials, &scalars, 3);
+    let dot_yw = Dot::new(ctx, k, &y_buf, &w_buf, n, &partials, &scalars, 4);
     let stages: Vec<(wgpu::BindGroup, wgpu::Buffer)> = (0..3u32)
         .map(|s| {
             let u = uniform(ctx, "stage", &[s, 0, 0, 0]);
@@ -75,29 +73,29 @@ pub fn solve(
         })
         .collect();
     let restart = bind(ctx, &k.cpg_restart, &[&scalars, &w_buf, &d_buf]);
-    let update = bind(ctx, &k.cpg_update, &[&scalars, &d_buf, &mu_buf, &r_buf, &status_buf, &changed_buf]);
-    let gradient = bind(ctx, &k.cpg_gradient, &[&u_buf, &scale_buf, &d_buf, &status_buf, &mu_buf, &w_buf, &z_buf]);
+    let update = bind(ctx, &k.cpg_update, &[&scalars, &d_buf, &gp.mu, &r_buf, &status_buf, &changed_buf]);
+    let gradient = bind(ctx, &k.cpg_gradient, &[&u_buf, &scale_buf, &d_buf, &status_buf, &gp.mu, &w_buf, &z_buf]);
     let direction = bind(ctx, &k.cpg_direction, &[&scalars, &w_buf, &z_buf, &d_buf]);
     let g = groups(nc);
     // Start: u = W r + q, w = projected gradient, d = w (β = 0 in a fresh scalars buffer).
     submit(ctx, "cpg start", |pass| {
-        residual.record(&k, pass);
+        residual.record(k, pass);
         dispatch(pass, &k.cpg_gradient, &gradient, g);
         dispatch(pass, &k.cpg_direction, &direction, g);
     });
-    iterate(ctx, p, opts, kind, start, r, &r_buf, 2, |pass| {
-        dot_ud.record(&k, pass);
-        dot_uw.record(&k, pass);
+    iterate(ctx, p, &gp, opts, kind, start, r, &r_buf, 2, |pass| {
+        dot_ud.record(k, pass);
+        dot_uw.record(k, pass);
         dispatch(pass, &k.cpg_scalars, &stages[0].0, 1);
         dispatch(pass, &k.cpg_restart, &restart, g);
-        product.record(&k, pass);
-        dot_dy.record(&k, pass);
+        product.record(k, pass);
+        dot_dy.record(k, pass);
         dispatch(pass, &k.cpg_scalars, &stages[1].0, 1);
         dispatch(pass, &k.cpg_update, &update, g);
-        residual.record(&k, pass);
+        residual.record(k, pass);
         dispatch(pass, &k.cpg_gradient, &gradient, g);
-        dot_changed.record(&k, pass);
-        dot_yw.record(&k, pass);
+        dot_changed.record(k, pass);
+        dot_yw.record(k, pass);
         dispatch(pass, &k.cpg_scalars, &stages[2].0, 1);
         dispatch(pass, &k.cpg_direction, &direction, g);
     })

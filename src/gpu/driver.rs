@@ -9,8 +9,8 @@ use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
 use super::kernels::{bind, dispatch, groups, read_back, storage, submit};
-use super::layout::{to_f32_pairs, to_f64};
-use super::operator::GpuOperator;
+use super::layout::to_f64;
+use super::operator::{GpuOperator, GpuProblem};
 use super::reduce::{partials_len, Dot};
 use crate::problem::cone::project_cone;
 use crate::problem::residual::error_of;
@@ -45,6 +45,7 @@ fn land_on_cone(p: &ContactProblem, r: &mut [f64]) {
 pub fn iterate(
     ctx: &GpuContext,
     p: &ContactProblem,
+    gp: &GpuProblem,
     opts: &SolverOptions,
     kind: SolverKind,
     start: Instant,
@@ -54,7 +55,7 @@ pub fn iterate(
     record: impl Fn(&mut wgpu::ComputePass),
 ) -> Result<SolveReport, GpuError> {
     let nc = p.n_contacts();
-    let checker = Checker::new(ctx, p, r_buf);
+    let checker = Checker::new(ctx, p, gp, r_buf);
     let (mut error, _) = error_of(p, &r);
     let mut history = vec![HistoryPoint { iteration: 0, seconds: start.elapsed().as_secs_f64(), w_products: 0, error }];
     let (mut best, mut best_r) = (error, r.clone());
@@ -150,18 +151,15 @@ struct Checker {
 }
 
 impl Checker {
-    fn new(ctx: &GpuContext, p: &ContactProblem, r_buf: &wgpu::Buffer) -> Self {
+    fn new(ctx: &GpuContext, p: &ContactProblem, gp: &GpuProblem, r_buf: &wgpu::Buffer) -> Self {
         let nc = p.n_contacts();
-        let (rotation, friction) = super::specialisation(p);
-        let kernels = ctx.kernels(rotation, friction);
-        let q = storage(ctx, "q", &to_f32_pairs(&p.q));
+        let kernels = gp.kernels.clone();
         let u = storage(ctx, "u check", &vec![[0.0f32; 2]; nc]);
         let f = storage(ctx, "f", &vec![[0.0f32; 2]; nc]);
-        let mu = storage(ctx, "mu", &p.mu.iter().map(|&m| m as f32).collect::<Vec<_>>());
         let scalars = storage(ctx, "check scalars", &[0.0f32; 4]);
         let partials = storage(ctx, "check partials", &vec![0.0f32; partials_len(2 * nc)]);
-        let operator = GpuOperator::new(ctx, &kernels, &p.w, r_buf, &q, &u);
-        let residual = bind(ctx, &kernels.natural_map, &[r_buf, &u, &mu, &f]);
+        let operator = gp.product(ctx, r_buf, &gp.q, &u);
+        let residual = bind(ctx, &kernels.natural_map, &[r_buf, &u, &gp.mu, &f]);
         let n = 2 * nc;
         let dots = [
             Dot::new(ctx, &kernels, &f, &f, n, &partials, &scalars, 0),
@@ -169,16 +167,7 @@ impl Checker {
             Dot::new(ctx, &kernels, &u, &u, n, &partials, &scalars, 2),
         ];
         let q_norm = p.q.iter().map(|x| x * x).sum::<f64>().sqrt();
-        Self {
-            operator,
-            kernels,
-            residual,
-            dots,
-            scalars,
-            q_norm,
-            groups: groups(nc),
-            _buffers: vec![q, u, f, mu, partials],
-        }
+        Self { operator, kernels, residual, dots, scalars, q_norm, groups: groups(nc), _buffers: vec![u, f, partials] }
     }
 
     fn estimate(&self, ctx: &GpuContext) -> Result<f64, GpuError> {

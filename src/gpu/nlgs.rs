@@ -11,8 +11,9 @@ use super::colouring::Colouring;
 use super::context::{GpuContext, GpuError};
 use super::driver::{initial_impulses, iterate};
 use super::kernels::{bind, dispatch, groups, storage, submit, uniform};
-use super::layout::{to_f32_pairs, BsrLayout, MatrixFreeLayout};
-use crate::problem::{ContactProblem, Delassus};
+use super::layout::to_f32_pairs;
+use super::operator::{GpuMatrix, GpuProblem};
+use crate::problem::ContactProblem;
 use crate::solvers::{SolveReport, SolverKind, SolverOptions};
 
 /// The `Range` uniform of the colour kernels (padded to 16 bytes).
@@ -31,14 +32,13 @@ pub fn solve(
     r0: Option<&[f64]>,
 ) -> Result<SolveReport, GpuError> {
     let start = Instant::now();
-    let nc = p.n_contacts();
+    let gp = GpuProblem::upload(ctx, p);
+    let kernels = &gp.kernels;
     let r = initial_impulses(p, r0);
     let diag: Vec<[f32; 4]> = p.w.diag_blocks().iter().map(|d| d.map(|x| x as f32)).collect();
-    let mu: Vec<f32> = p.mu.iter().map(|&m| m as f32).collect();
     let r_buf = storage(ctx, "r", &to_f32_pairs(&r));
-    let q_buf = storage(ctx, "q", &to_f32_pairs(&p.q));
     let diag_buf = storage(ctx, "diag", &diag);
-    let mu_buf = storage(ctx, "mu", &mu);
+    // Per colour: its range uniform (kept alive by its bind group) and its size.
     let ranges = |c: &Colouring| -> Vec<(wgpu::Buffer, u32)> {
         (0..c.n_colours())
             .map(|k| {
@@ -47,73 +47,44 @@ pub fn solve(
             })
             .collect()
     };
-    match &p.w {
-        Delassus::MatrixFree(op) => {
-            let layout = MatrixFreeLayout::new(op);
-            let kernels = ctx.kernels(layout.rotation, layout.friction);
-            let colouring = Colouring::matrix_free(&layout);
-            let contacts = storage(ctx, "contacts", &layout.contacts);
-            let inv_mass = storage(ctx, "inv_mass", &layout.inv_mass);
-            let start_buf = storage(ctx, "body_start", &layout.body_start);
-            let list = storage(ctx, "body_list", &layout.body_list);
+    let (pipeline, groups_per_colour, _order) = match &gp.matrix {
+        GpuMatrix::MatrixFree { layout, contacts, body_start, body_list, inv_mass } => {
+            let colouring = Colouring::matrix_free(layout);
             let order = storage(ctx, "order", &colouring.order);
             let v = storage(ctx, "v", &vec![[0.0f32; 4]; layout.inv_mass.len()]);
             // v = M⁻¹ Bᵀ r of the starting impulses, once.
             let accumulate =
-                bind(ctx, &kernels.body_accumulate, &[&contacts, &start_buf, &list, &inv_mass, &r_buf, &v]);
+                bind(ctx, &kernels.body_accumulate, &[contacts, body_start, body_list, inv_mass, &r_buf, &v]);
             submit(ctx, "nlgs start", |pass| {
                 dispatch(pass, &kernels.body_accumulate, &accumulate, groups(layout.inv_mass.len()))
             });
-            let groups_per_colour: Vec<(wgpu::BindGroup, u32)> = ranges(&colouring)
+            let per_colour: Vec<(wgpu::BindGroup, u32)> = ranges(&colouring)
                 .into_iter()
                 .map(|(range, count)| {
-                    (
-                        bind(
-                            ctx,
-                            &kernels.nlgs_colour,
-                            &[&contacts, &inv_mass, &diag_buf, &q_buf, &mu_buf, &order, &r_buf, &v, &range],
-                        ),
-                        count,
-                    )
+                    let buffers = [contacts, inv_mass, &diag_buf, &gp.q, &gp.mu, &order, &r_buf, &v, &range];
+                    (bind(ctx, &kernels.nlgs_colour, &buffers), count)
                 })
                 .collect();
-            iterate(ctx, p, opts, SolverKind::Nlgs, start, r, &r_buf, 1, |pass| {
-                pass.set_pipeline(&kernels.nlgs_colour);
-                for (group, count) in &groups_per_colour {
-                    pass.set_bind_group(0, group, &[]);
-                    pass.dispatch_workgroups(groups(*count as usize), 1, 1);
-                }
-            })
+            (&kernels.nlgs_colour, per_colour, order)
         }
-        Delassus::Sparse(s) => {
-            let layout = BsrLayout::new(s);
-            let kernels = ctx.kernels(true, true);
-            let colouring = Colouring::block_sparse(&layout);
-            let row_ptr = storage(ctx, "row_ptr", &layout.row_ptr);
-            let cols = storage(ctx, "cols", &layout.cols);
-            let blocks = storage(ctx, "blocks", &layout.blocks);
+        GpuMatrix::Sparse { layout, row_ptr, cols, blocks } => {
+            let colouring = Colouring::block_sparse(layout);
             let order = storage(ctx, "order", &colouring.order);
-            let groups_per_colour: Vec<(wgpu::BindGroup, u32)> = ranges(&colouring)
+            let per_colour: Vec<(wgpu::BindGroup, u32)> = ranges(&colouring)
                 .into_iter()
                 .map(|(range, count)| {
-                    (
-                        bind(
-                            ctx,
-                            &kernels.nlgs_colour_bsr,
-                            &[&row_ptr, &cols, &blocks, &diag_buf, &q_buf, &mu_buf, &order, &r_buf, &range],
-                        ),
-                        count,
-                    )
+                    let buffers = [row_ptr, cols, blocks, &diag_buf, &gp.q, &gp.mu, &order, &r_buf, &range];
+                    (bind(ctx, &kernels.nlgs_colour_bsr, &buffers), count)
                 })
                 .collect();
-            let _ = nc;
-            iterate(ctx, p, opts, SolverKind::Nlgs, start, r, &r_buf, 1, |pass| {
-                pass.set_pipeline(&kernels.nlgs_colour_bsr);
-                for (group, count) in &groups_per_colour {
-                    pass.set_bind_group(0, group, &[]);
-                    pass.dispatch_workgroups(groups(*count as usize), 1, 1);
-                }
-            })
+            (&kernels.nlgs_colour_bsr, per_colour, order)
         }
-    }
+    };
+    iterate(ctx, p, &gp, opts, SolverKind::Nlgs, start, r, &r_buf, 1, |pass| {
+        pass.set_pipeline(pipeline);
+        for (group, count) in &groups_per_colour {
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(groups(*count as usize), 1, 1);
+        }
+    })
 }

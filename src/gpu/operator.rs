@@ -1,65 +1,108 @@
-//! `u = W r + q` on the GPU: the matrix-free pair of kernels (body accumulation, then contact
-//! gather) or the block-sparse product, recorded into a compute pass.
+//! A problem on the GPU, uploaded once per solve: `W` (its matrix-free layout or its blocks), `q`,
+//! `μ` and the pipelines of its specialisation. `u = W r + q` products are bound to it for any
+//! (r, q, u) buffers — the solver's own products and the error check share one copy of `W`.
+
+use std::sync::Arc;
 
 use super::context::GpuContext;
 use super::kernels::{bind, dispatch, groups, storage, Kernels};
-use super::layout::{BsrLayout, MatrixFreeLayout};
-use crate::problem::Delassus;
+use super::layout::{to_f32_pairs, BsrLayout, MatrixFreeLayout};
+use crate::problem::{ContactProblem, Delassus};
 
+/// `W` on the GPU, with the CPU layout it came from (the NLGS colouring reads it).
+pub enum GpuMatrix {
+    MatrixFree {
+        layout: MatrixFreeLayout,
+        contacts: wgpu::Buffer,
+        body_start: wgpu::Buffer,
+        body_list: wgpu::Buffer,
+        inv_mass: wgpu::Buffer,
+    },
+    Sparse {
+        layout: BsrLayout,
+        row_ptr: wgpu::Buffer,
+        cols: wgpu::Buffer,
+        blocks: wgpu::Buffer,
+    },
+}
+
+pub struct GpuProblem {
+    pub matrix: GpuMatrix,
+    pub q: wgpu::Buffer,
+    pub mu: wgpu::Buffer,
+    pub kernels: Arc<Kernels>,
+}
+
+impl GpuProblem {
+    pub fn upload(ctx: &GpuContext, p: &ContactProblem) -> Self {
+        let matrix = match &p.w {
+            Delassus::MatrixFree(op) => {
+                let layout = MatrixFreeLayout::new(op);
+                GpuMatrix::MatrixFree {
+                    contacts: storage(ctx, "contacts", &layout.contacts),
+                    body_start: storage(ctx, "body_start", &layout.body_start),
+                    body_list: storage(ctx, "body_list", &layout.body_list),
+                    inv_mass: storage(ctx, "inv_mass", &layout.inv_mass),
+                    layout,
+                }
+            }
+            Delassus::Sparse(s) => {
+                let layout = BsrLayout::new(s);
+                GpuMatrix::Sparse {
+                    row_ptr: storage(ctx, "row_ptr", &layout.row_ptr),
+                    cols: storage(ctx, "cols", &layout.cols),
+                    blocks: storage(ctx, "blocks", &layout.blocks),
+                    layout,
+                }
+            }
+        };
+        let (rotation, friction) = super::specialisation(p);
+        Self {
+            matrix,
+            q: storage(ctx, "q", &to_f32_pairs(&p.q)),
+            mu: storage(ctx, "mu", &p.mu.iter().map(|&m| m as f32).collect::<Vec<_>>()),
+            kernels: ctx.kernels(rotation, friction),
+        }
+    }
+
+    /// A product `u = W r + q` reading `r` and `q` and writing `u`.
+    pub fn product(&self, ctx: &GpuContext, r: &wgpu::Buffer, q: &wgpu::Buffer, u: &wgpu::Buffer) -> GpuOperator {
+        let k = &self.kernels;
+        match &self.matrix {
+            GpuMatrix::MatrixFree { layout, contacts, body_start, body_list, inv_mass } => {
+                let v = storage(ctx, "v", &vec![[0.0f32; 4]; layout.inv_mass.len()]);
+                GpuOperator::MatrixFree {
+                    bodies: layout.inv_mass.len(),
+                    contacts: layout.contacts.len(),
+                    accumulate: bind(ctx, &k.body_accumulate, &[contacts, body_start, body_list, inv_mass, r, &v]),
+                    gather: bind(ctx, &k.contact_gather, &[contacts, &v, q, u]),
+                    _v: v,
+                }
+            }
+            GpuMatrix::Sparse { layout, row_ptr, cols, blocks } => GpuOperator::Sparse {
+                contacts: layout.row_ptr.len() - 1,
+                product: bind(ctx, &k.bsr_product, &[row_ptr, cols, blocks, r, q, u]),
+            },
+        }
+    }
+}
+
+/// A bound product `u = W r + q` (bind groups keep the buffers they use alive).
 pub enum GpuOperator {
     MatrixFree {
         bodies: usize,
         contacts: usize,
         accumulate: wgpu::BindGroup,
         gather: wgpu::BindGroup,
-        _buffers: Vec<wgpu::Buffer>,
+        _v: wgpu::Buffer,
     },
     Sparse {
         contacts: usize,
         product: wgpu::BindGroup,
-        _buffers: Vec<wgpu::Buffer>,
     },
 }
 
 impl GpuOperator {
-    /// Uploads `w` and binds it to read `r` and `q` and write `u`.
-    pub fn new(
-        ctx: &GpuContext,
-        kernels: &Kernels,
-        w: &Delassus,
-        r: &wgpu::Buffer,
-        q: &wgpu::Buffer,
-        u: &wgpu::Buffer,
-    ) -> Self {
-        match w {
-            Delassus::MatrixFree(op) => {
-                let l = MatrixFreeLayout::new(op);
-                let contacts = storage(ctx, "contacts", &l.contacts);
-                let start = storage(ctx, "body_start", &l.body_start);
-                let list = storage(ctx, "body_list", &l.body_list);
-                let inv_mass = storage(ctx, "inv_mass", &l.inv_mass);
-                let v = storage(ctx, "v", &vec![[0.0f32; 4]; l.inv_mass.len()]);
-                let accumulate = bind(ctx, &kernels.body_accumulate, &[&contacts, &start, &list, &inv_mass, r, &v]);
-                let gather = bind(ctx, &kernels.contact_gather, &[&contacts, &v, q, u]);
-                GpuOperator::MatrixFree {
-                    bodies: l.inv_mass.len(),
-                    contacts: l.contacts.len(),
-                    accumulate,
-                    gather,
-                    _buffers: vec![contacts, start, list, inv_mass, v],
-                }
-            }
-            Delassus::Sparse(s) => {
-                let l = BsrLayout::new(s);
-                let row_ptr = storage(ctx, "row_ptr", &l.row_ptr);
-                let cols = storage(ctx, "cols", &l.cols);
-                let blocks = storage(ctx, "blocks", &l.blocks);
-                let product = bind(ctx, &kernels.bsr_product, &[&row_ptr, &cols, &blocks, r, q, u]);
-                GpuOperator::Sparse { contacts: l.row_ptr.len() - 1, product, _buffers: vec![row_ptr, cols, blocks] }
-            }
-        }
-    }
-
     /// Records `u = W r + q`.
     pub fn record(&self, kernels: &Kernels, pass: &mut wgpu::ComputePass) {
         match self {
@@ -67,7 +110,7 @@ impl GpuOperator {
                 dispatch(pass, &kernels.body_accumulate, accumulate, groups(*bodies));
                 dispatch(pass, &kernels.contact_gather, gather, groups(*contacts));
             }
-            GpuOperator::Sparse { contacts, product, .. } => {
+            GpuOperator::Sparse { contacts, product } => {
                 dispatch(pass, &kernels.bsr_product, product, groups(*contacts));
             }
         }

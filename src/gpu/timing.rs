@@ -6,8 +6,7 @@ use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
 use super::kernels::{bind, dispatch, groups, storage, submit};
-use super::layout::to_f32_pairs;
-use super::operator::GpuOperator;
+use super::operator::GpuProblem;
 use crate::problem::ContactProblem;
 
 /// Seconds per `W` product and per projected-Jacobi iteration (product + update).
@@ -29,20 +28,18 @@ fn run(ctx: &GpuContext, n: usize, mut record: impl FnMut(&mut wgpu::ComputePass
 
 pub fn kernel_times(ctx: &GpuContext, p: &ContactProblem, n: usize) -> Result<KernelTimes, GpuError> {
     let nc = p.n_contacts();
-    let (rotation, friction) = super::specialisation(p);
-    let kernels = ctx.kernels(rotation, friction);
+    let gp = GpuProblem::upload(ctx, p);
+    let kernels = &gp.kernels;
     let r = storage(ctx, "r", &vec![[0.0f32; 2]; nc]);
-    let q = storage(ctx, "q", &to_f32_pairs(&p.q));
     let u = storage(ctx, "u", &vec![[0.0f32; 2]; nc]);
-    let mu = storage(ctx, "mu", &p.mu.iter().map(|&m| m as f32).collect::<Vec<_>>());
     let step =
         storage(ctx, "step", &p.w.diag_blocks().iter().map(|d| (1.0 / (d[0] + d[3])) as f32).collect::<Vec<_>>());
-    let op = GpuOperator::new(ctx, &kernels, &p.w, &r, &q, &u);
-    let update = bind(ctx, &kernels.jacobi_update, &[&u, &mu, &step, &r]);
-    run(ctx, 3, |pass| op.record(&kernels, pass))?; // warm-up: pipeline creation, first-use costs
-    let product = run(ctx, n, |pass| op.record(&kernels, pass))?;
+    let op = gp.product(ctx, &r, &gp.q, &u);
+    let update = bind(ctx, &kernels.jacobi_update, &[&u, &gp.mu, &step, &r]);
+    run(ctx, 3, |pass| op.record(kernels, pass))?; // warm-up: pipeline creation, first-use costs
+    let product = run(ctx, n, |pass| op.record(kernels, pass))?;
     let jacobi_iteration = run(ctx, n, |pass| {
-        op.record(&kernels, pass);
+        op.record(kernels, pass);
         dispatch(pass, &kernels.jacobi_update, &update, groups(nc));
     })?;
     Ok(KernelTimes { product, jacobi_iteration })
