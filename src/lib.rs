@@ -3,6 +3,8 @@
 //! * [`problem`]: the one-step frictional contact problem `u = W r + q` and its operator `W`
 //!   (matrix-free `B M⁻¹ Bᵀ` or explicit block-sparse), the Coulomb cone, the error measure.
 //! * [`solvers`]: the CPU reference solvers in f64 (NLGS, CPG, PCPG, LATIN, projected Jacobi, APGD).
+//! * [`structure`]: the founding paper's Signorini punch (finite elements condensed to an LCP) and
+//!   the dual projected CG.
 //! * [`io`]: Siconos fc2d problem files, JSON reports.
 //! * [`cli`]: the `moreau` command line.
 
@@ -14,6 +16,7 @@ pub mod problem;
 pub mod scene;
 pub mod solvers;
 pub mod stepping;
+pub mod structure;
 pub mod sweep;
 pub mod world;
 

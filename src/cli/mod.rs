@@ -1,6 +1,7 @@
 //! The `moreau` command line.
 
 mod bench;
+mod punch;
 mod run;
 mod sweep;
 
@@ -74,6 +75,9 @@ struct SolveArgs {
     /// LATIN search direction, as a multiple of diag(W).
     #[arg(long, default_value_t = SolverOptions::default().latin_k)]
     latin_k: f64,
+    /// LATIN: one k for all, `--latin-k` times the mean of diag(W).
+    #[arg(long)]
+    latin_k_mean: bool,
     /// APGD iterations between Tresca threshold updates.
     #[arg(long, default_value_t = SolverOptions::default().apgd_threshold_every)]
     apgd_threshold_every: usize,
@@ -239,8 +243,10 @@ fn solve_command(a: SolveArgs) -> Result<()> {
         seed: a.seed,
         jacobi_omega: a.jacobi_omega,
         latin_k: a.latin_k,
+        latin_k_mean: a.latin_k_mean,
         apgd_threshold_every: a.apgd_threshold_every,
         history_every: a.history_every,
+        keep_iterates: false,
     };
     let (report, adapter) = match &device {
         Device::Cpu => (solve(&problem, a.solver, &opts, None), None),

@@ -6,6 +6,7 @@ use std::time::Duration;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use super::punch::{run_punch, PunchOverrides};
 use super::{resolve_device, Device, DeviceChoice};
 use crate::io::run_output::{RunOutput, RunSummary};
 use crate::io::siconos::{write_fc2d, Storage};
@@ -54,7 +55,19 @@ pub struct RunArgs {
 const WARNINGS_SHOWN: usize = 5;
 
 pub fn run_command(a: RunArgs) -> Result<()> {
-    let mut scene = scene::load(&a.scene)?;
+    let mut scene = match scene::load_any(&a.scene)? {
+        scene::AnyScene::Granular(s) => *s,
+        scene::AnyScene::Punch(p) => {
+            let overrides = PunchOverrides {
+                solver: a.solver,
+                tol: a.tol,
+                max_iter: a.max_iter,
+                device: a.device,
+                out: a.out.clone(),
+            };
+            return run_punch(*p, overrides);
+        }
+    };
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }

@@ -9,17 +9,19 @@ use crate::gpu::GpuContext;
 use crate::io::plots::{font_available, write_chart, Chart, Series};
 use crate::io::siconos::read_fc2d;
 use crate::problem::ContactProblem;
-use crate::scene;
-use crate::solvers::{solve, SolverKind, SolverOptions};
+use crate::scene::{self, PunchScene};
+use crate::solvers::{solve, HistoryPoint, SolverKind, SolverOptions};
 use crate::stepping::Simulation;
+use crate::structure::study::{latin_k_sweep, run, PunchProblems, StructuralSolver};
 use crate::sweep::{markdown_table, profile::profiles, run_one, Device, Run};
 
 #[derive(clap::Args)]
 pub struct SweepArgs {
     /// A problem file (Siconos fc2d), a directory of them, or a scene (.toml).
     target: PathBuf,
-    #[arg(long, value_delimiter = ',', default_values_t = [SolverKind::Nlgs, SolverKind::Pcpg, SolverKind::Cpg, SolverKind::Jacobi, SolverKind::Apgd, SolverKind::Latin])]
-    solvers: Vec<SolverKind>,
+    /// Solvers: nlgs, cpg, pcpg, latin, jacobi, apgd; and dual_cg on a structural scene.
+    #[arg(long, value_delimiter = ',', default_values_t = ["nlgs", "pcpg", "cpg", "jacobi", "apgd", "latin"].map(String::from))]
+    solvers: Vec<String>,
     /// cpu, gpu or both.
     #[arg(long, value_delimiter = ',', default_values_t = ["cpu".to_string()])]
     devices: Vec<String>,
@@ -35,6 +37,9 @@ pub struct SweepArgs {
     scene_steps: Vec<usize>,
     #[arg(long, default_value = "out/sweep")]
     out: PathBuf,
+    /// Structural scenes: LATIN's k as these multiples of mean diag(M) and of diag(M).
+    #[arg(long, value_delimiter = ',', default_values_t = [1.0 / 64.0, 1.0 / 32.0, 1.0 / 16.0, 0.125, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0])]
+    latin_k_factors: Vec<f64>,
 }
 
 /// The problems of a target: files, a directory, or steps of a scene (simulated on the CPU).
@@ -108,6 +113,21 @@ pub fn sweep_command(a: SweepArgs) -> Result<()> {
             other => bail!("--devices: unknown device {other:?} (cpu, gpu)"),
         })
         .collect::<Result<_>>()?;
+    let solvers: Vec<StructuralSolver> =
+        a.solvers.iter().map(|s| StructuralSolver::parse(s).map_err(anyhow::Error::msg)).collect::<Result<_>>()?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    if a.target.extension().is_some_and(|e| e == "toml") {
+        if let scene::AnyScene::Punch(p) = scene::load_any(&a.target)? {
+            return structural_sweep(&p, &solvers, &devices, &tols, &a);
+        }
+    }
+    let kinds: Vec<SolverKind> = solvers
+        .iter()
+        .map(|s| match s {
+            StructuralSolver::Primal(k) => Ok(*k),
+            StructuralSolver::DualCg => bail!("dual_cg solves the dual of a structural problem: give a punch scene"),
+        })
+        .collect::<Result<_>>()?;
     let gpu = if devices.contains(&Device::Gpu) {
         let ctx = GpuContext::new()?;
         eprintln!("gpu: {}", ctx.describe());
@@ -116,11 +136,10 @@ pub fn sweep_command(a: SweepArgs) -> Result<()> {
         None
     };
     let problems = problems_of(&a.target, &a.scene_steps)?;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let tightest = *tols.last().unwrap();
     let mut runs: Vec<Run> = Vec::new();
     for (name, p) in &problems {
-        for &solver in &a.solvers {
+        for &solver in &kinds {
             for &device in &devices {
                 if device == Device::Gpu && !crate::gpu::supports(solver) {
                     eprintln!("{name}: {} has no GPU version, skipped on the gpu", solver.name());
@@ -141,13 +160,27 @@ pub fn sweep_command(a: SweepArgs) -> Result<()> {
             }
         }
     }
-    write_csv(&a.out.join("work_precision.csv"), runs.iter().flat_map(|r| tols.iter().map(|&t| r.at(t))))?;
+    let names: Vec<String> = problems.iter().map(|(n, _)| n.clone()).collect();
+    write_sweep_outputs(&a.out, &names, &runs, &tols, a.profile_tol)?;
+    eprintln!("outputs in {}", a.out.display());
+    Ok(())
+}
+
+/// work_precision.csv, histories.csv, time_to_tol.md, profile.csv and the charts.
+fn write_sweep_outputs(
+    out: &Path,
+    problems: &[String],
+    runs: &[Run],
+    tols: &[f64],
+    profile_tol: Option<f64>,
+) -> Result<()> {
+    write_csv(&out.join("work_precision.csv"), runs.iter().flat_map(|r| tols.iter().map(|&t| r.at(t))))?;
     write_csv(
-        &a.out.join("histories.csv"),
+        &out.join("histories.csv"),
         runs.iter().flat_map(|r| {
             r.history.iter().map(|h| HistoryRow {
                 problem: &r.problem,
-                solver: r.solver.name(),
+                solver: &r.solver,
                 device: r.device.name(),
                 iteration: h.iteration,
                 seconds: h.seconds,
@@ -156,53 +189,220 @@ pub fn sweep_command(a: SweepArgs) -> Result<()> {
             })
         }),
     )?;
-    let table = markdown_table(&runs, &tols);
-    std::fs::write(a.out.join("time_to_tol.md"), &table)?;
+    let table = markdown_table(runs, tols);
+    std::fs::write(out.join("time_to_tol.md"), &table)?;
     println!("{table}");
-    let profile_tol = a.profile_tol.unwrap_or(tols[tols.len() / 2]);
-    let profile = profiles(&runs, profile_tol);
+    let profile_tol = profile_tol.unwrap_or(tols[tols.len() / 2]);
+    let profile = profiles(runs, profile_tol);
     write_csv(
-        &a.out.join("profile.csv"),
+        &out.join("profile.csv"),
         profile.iter().flat_map(|(label, pts)| pts.iter().map(move |(tau, rho)| (label.clone(), *tau, *rho))),
     )?;
-    if font_available() {
-        for (name, _) in &problems {
-            let series: Vec<Series> = runs
-                .iter()
-                .filter(|r| &r.problem == name)
-                .map(|r| {
-                    let pts = r.history.iter().filter(|h| h.seconds > 0.0).map(|h| (h.seconds, h.error)).collect();
-                    (format!("{} {}", r.solver.name(), r.device.name()), pts)
-                })
-                .collect();
-            let title = format!("{name}: error vs time");
-            let stem = a.out.join(format!("work_precision_{}", name.replace(['/', '@'], "_")));
-            write_chart(
-                &stem,
-                &Chart {
-                    title: &title,
-                    x_label: "seconds",
-                    y_label: "error",
-                    log_x: true,
-                    log_y: true,
-                    series: &series,
-                },
-            )?;
-        }
-        let title = format!("performance profile at tol {profile_tol:.0e} ({} problems)", problems.len());
+    if !font_available() {
+        eprintln!("warning: no font for chart text (install fonts-dejavu-core or set MOREAU_FONT): CSV only");
+        return Ok(());
+    }
+    for name in problems {
+        let series: Vec<Series> = runs
+            .iter()
+            .filter(|r| &r.problem == name)
+            .map(|r| {
+                let pts = r.history.iter().filter(|h| h.seconds > 0.0).map(|h| (h.seconds, h.error)).collect();
+                (format!("{} {}", r.solver, r.device.name()), pts)
+            })
+            .collect();
+        let title = format!("{name}: error vs time");
+        let stem = out.join(format!("work_precision_{}", name.replace(['/', '@'], "_")));
         write_chart(
-            &a.out.join("profile"),
+            &stem,
+            &Chart { title: &title, x_label: "seconds", y_label: "error", log_x: true, log_y: true, series: &series },
+        )?;
+    }
+    let title = format!("performance profile at tol {profile_tol:.0e} ({} problems)", problems.len());
+    write_chart(
+        &out.join("profile"),
+        &Chart {
+            title: &title,
+            x_label: "τ (time / best time)",
+            y_label: "fraction solved",
+            log_x: true,
+            log_y: false,
+            series: &profile,
+        },
+    )
+}
+
+#[derive(serde::Serialize)]
+struct EnergyRow<'a> {
+    problem: &'a str,
+    solver: &'a str,
+    iteration: usize,
+    seconds: f64,
+    w_products: usize,
+    error: f64,
+    energy_error: f64,
+}
+
+/// The structural sweep (founding paper, Fig. 17.1): each solver on the condensed punch, its
+/// natural-map error against time (work_precision.csv and the common outputs), its energy-norm
+/// error against iterations (energy_convergence.csv and chart), and LATIN's k sweep (latin_k.csv
+/// and chart).
+fn structural_sweep(
+    scene: &PunchScene,
+    solvers: &[StructuralSolver],
+    devices: &[Device],
+    tols: &[f64],
+    a: &SweepArgs,
+) -> Result<()> {
+    if devices.contains(&Device::Gpu) {
+        eprintln!("{}: structural problems run on the CPU only; the gpu column is skipped", scene.name);
+    }
+    let t = std::time::Instant::now();
+    let problems = PunchProblems::new(&scene.model)?;
+    eprintln!(
+        "{}: {} dofs condensed on {} contact dofs in {:.3} s",
+        scene.name,
+        scene.model.n_dofs(),
+        scene.model.n_contacts(),
+        t.elapsed().as_secs_f64()
+    );
+    let tightest = *tols.last().unwrap();
+    // Every iteration is recorded: the paper's Fig. 17.1 is error against iterations.
+    let opts = SolverOptions { tol: tightest, max_iter: a.max_iter, history_every: 1, ..scene.options.clone() };
+    let rows = latin_k_sweep(&problems, &a.latin_k_factors, tightest, a.max_iter);
+    write_csv(&a.out.join("latin_k.csv"), rows.iter())?;
+    let best_factor = |diagonal: bool| {
+        rows.iter()
+            .filter(|r| r.per_contact_diagonal == diagonal && r.converged)
+            .min_by(|x, y| x.iterations.cmp(&y.iterations).then(x.seconds.total_cmp(&y.seconds)))
+    };
+    for diagonal in [false, true] {
+        match best_factor(diagonal) {
+            Some(b) => eprintln!(
+                "LATIN, k = factor × {}: best factor {} ({} its to {tightest:.0e}, {:.4} s)",
+                if diagonal { "diag(M)" } else { "mean diag(M)" },
+                b.factor,
+                b.iterations,
+                b.seconds
+            ),
+            None => eprintln!("LATIN: no factor reached {tightest:.0e}"),
+        }
+    }
+    if let Some((lo, hi)) = problems.extreme_eigenvalues() {
+        eprintln!(
+            "M / mean diag(M): eigenvalues in [{lo:.3e}, {hi:.3e}]; the augmented-Lagrangian optimum √(λ_min λ_max) = {:.3e}",
+            (lo * hi).sqrt()
+        );
+    }
+    let mut solvers: Vec<(String, StructuralSolver, SolverOptions)> =
+        solvers.iter().map(|&s| (s.name().to_string(), s, opts.clone())).collect();
+    if let (Some(b), true) =
+        (best_factor(false), solvers.iter().any(|s| s.1 == StructuralSolver::Primal(SolverKind::Latin)))
+    {
+        let label = format!("latin k={}·mean", b.factor);
+        let best = SolverOptions { latin_k: b.factor, latin_k_mean: true, ..opts.clone() };
+        solvers.push((label, StructuralSolver::Primal(SolverKind::Latin), best));
+    }
+    let mut runs = Vec::new();
+    let mut energy = Vec::new();
+    for (label, solver, opts) in &solvers {
+        let r = run(&problems, *solver, opts);
+        eprintln!(
+            "{}: {label}: error {:.2e}, energy-norm error {:.2e} after {} its, {:.4} s ({})",
+            scene.name,
+            r.error(),
+            r.energy_error(),
+            r.iterations,
+            r.seconds,
+            r.stop_reason
+        );
+        let history: Vec<HistoryPoint> = r
+            .points
+            .iter()
+            .map(|p| HistoryPoint {
+                iteration: p.iteration,
+                seconds: p.seconds,
+                w_products: p.w_products,
+                error: p.error,
+            })
+            .collect();
+        runs.push(Run {
+            problem: scene.name.clone(),
+            contacts: problems.primal.n,
+            solver: label.clone(),
+            device: Device::Cpu,
+            history,
+            converged: r.converged,
+            iterations: r.iterations,
+            error: r.error(),
+            seconds: r.seconds,
+            stop_reason: r.stop_reason.clone(),
+        });
+        energy.push((label.clone(), r));
+    }
+    write_sweep_outputs(&a.out, std::slice::from_ref(&scene.name), &runs, tols, a.profile_tol)?;
+    write_csv(
+        &a.out.join("energy_convergence.csv"),
+        energy.iter().flat_map(|(label, r)| {
+            r.points.iter().map(|p| EnergyRow {
+                problem: &scene.name,
+                solver: label,
+                iteration: p.iteration,
+                seconds: p.seconds,
+                w_products: p.w_products,
+                error: p.error,
+                energy_error: p.energy_error,
+            })
+        }),
+    )?;
+    if font_available() {
+        let series: Vec<Series> = energy
+            .iter()
+            .map(|(label, r)| {
+                let pts = r
+                    .points
+                    .iter()
+                    .filter(|p| p.energy_error > 0.0)
+                    .map(|p| (p.iteration.max(1) as f64, p.energy_error));
+                (label.clone(), pts.collect())
+            })
+            .collect();
+        let title = format!("{}: energy-norm error vs iterations", scene.name);
+        write_chart(
+            &a.out.join("energy_convergence"),
             &Chart {
                 title: &title,
-                x_label: "τ (time / best time)",
-                y_label: "fraction solved",
+                x_label: "iterations",
+                y_label: "‖z − z*‖_M / ‖z*‖_M",
                 log_x: true,
-                log_y: false,
-                series: &profile,
+                log_y: true,
+                series: &series,
             },
         )?;
-    } else {
-        eprintln!("warning: no font for chart text (install fonts-dejavu-core or set MOREAU_FONT): CSV only");
+        let series: Vec<Series> = [false, true]
+            .iter()
+            .map(|&diagonal| {
+                let label = if diagonal { "k = factor · diag(M)" } else { "k = factor · mean diag(M)" };
+                let pts = rows
+                    .iter()
+                    .filter(|r| r.per_contact_diagonal == diagonal)
+                    .map(|r| (r.factor, if r.converged { r.iterations as f64 } else { f64::NAN }))
+                    .collect();
+                (label.to_string(), pts)
+            })
+            .collect();
+        let title = format!("{}: LATIN iterations to {tightest:.0e} vs k", scene.name);
+        write_chart(
+            &a.out.join("latin_k"),
+            &Chart {
+                title: &title,
+                x_label: "factor",
+                y_label: "iterations",
+                log_x: true,
+                log_y: true,
+                series: &series,
+            },
+        )?;
     }
     eprintln!("outputs in {}", a.out.display());
     Ok(())

@@ -134,6 +134,7 @@ pub fn iterate(
         stop_reason,
         r,
         u,
+        iterates: Vec::new(),
     })
 }
 

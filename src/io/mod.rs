@@ -3,6 +3,7 @@
 
 pub mod picture;
 pub mod plots;
+pub mod punch_output;
 pub mod report;
 pub mod run_output;
 pub mod siconos;

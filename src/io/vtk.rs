@@ -15,7 +15,7 @@ use crate::detection::Antagonist;
 use crate::stepping::Simulation;
 use crate::world::{BodyShape, WallShape};
 
-fn grid(
+pub(crate) fn grid(
     title: &str,
     points: Vec<f64>,
     connectivity: Vec<u64>,

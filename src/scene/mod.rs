@@ -5,6 +5,7 @@
 pub mod deposition;
 pub mod file;
 pub mod generate;
+pub mod punch_file;
 
 use std::path::{Path, PathBuf};
 
@@ -12,6 +13,7 @@ use thiserror::Error;
 
 use crate::stepping::StepSettings;
 use crate::world::World;
+pub use punch_file::PunchScene;
 
 /// Where and how often a run writes its outputs.
 #[derive(Clone, Debug, Default)]
@@ -46,14 +48,54 @@ pub enum SceneError {
     Invalid { path: PathBuf, line: usize, field: String, message: String },
 }
 
-/// Reads and builds a scene file.
-pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
-    parse(&text, path)
+/// A granular scene (grains and walls) or a structural one (the finite-element punch).
+#[derive(Clone, Debug)]
+pub enum AnyScene {
+    Granular(Box<Scene>),
+    Punch(Box<PunchScene>),
 }
 
-/// Builds a scene from TOML text; `origin` names it in errors.
+/// Reads and builds a granular scene file.
+pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    parse(&read(path)?, path)
+}
+
+/// Reads and builds a scene file of either kind.
+pub fn load_any(path: &Path) -> Result<AnyScene, SceneError> {
+    parse_any(&read(path)?, path)
+}
+
+/// Builds a scene of either kind from TOML text; `origin` names it in errors.
+pub fn parse_any(text: &str, origin: &Path) -> Result<AnyScene, SceneError> {
+    if punch_table_line(text).is_some() {
+        return Ok(AnyScene::Punch(Box::new(punch_file::build(text, origin)?)));
+    }
+    Ok(AnyScene::Granular(Box::new(file::build(text, origin)?)))
+}
+
+fn read(path: &Path) -> Result<String, SceneError> {
+    std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })
+}
+
+/// Line of the `[punch]` table when the text is a structural scene.
+fn punch_table_line(text: &str) -> Option<usize> {
+    let table: toml::Spanned<toml::Table> = toml::from_str(text).ok()?;
+    table.get_ref().get("punch").map(|_| {
+        let offset = text.find("[punch]").unwrap_or(0);
+        line_of(text, offset)
+    })
+}
+
+/// Builds a granular scene from TOML text; `origin` names it in errors.
 pub fn parse(text: &str, origin: &Path) -> Result<Scene, SceneError> {
+    if let Some(line) = punch_table_line(text) {
+        return Err(SceneError::Invalid {
+            path: origin.to_path_buf(),
+            line,
+            field: "punch".into(),
+            message: "this is a structural scene (a finite-element punch, no grains): `moreau run` and `moreau sweep` take it".into(),
+        });
+    }
     file::build(text, origin)
 }
 

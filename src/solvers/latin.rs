@@ -7,7 +7,8 @@
 //!   the diagonal `k` decouples Signorini from the tangential law: with `σ = z − w/k`,
 //!   `ẑ_n = max(σ_n, 0)`, `ẑ_t = clamp(σ_t, ±μ ẑ_n)`, `ŵ = k (ẑ − σ)`.
 //!
-//! `k = latin_k · diag(W)` per component (compliance units). The returned impulse is `ẑ`, which
+//! `k = latin_k · diag(W)` per component (compliance units), or one `k = latin_k · mean diag(W)`
+//! with `latin_k_mean` (the founding paper offers both). The returned impulse is `ẑ`, which
 //! always lies in the cone.
 
 use super::monitor::Monitor;
@@ -17,11 +18,9 @@ use crate::problem::{dot, norm, ContactProblem};
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>) -> SolveReport {
     let nc = p.n_contacts();
     let n = 2 * nc;
-    let k: Vec<f64> =
-        p.w.diag_blocks()
-            .iter()
-            .flat_map(|d| [opts.latin_k * d[0], opts.latin_k * if d[3] > 0.0 { d[3] } else { d[0] }])
-            .collect();
+    let diag: Vec<f64> = p.w.diag_blocks().iter().flat_map(|d| [d[0], if d[3] > 0.0 { d[3] } else { d[0] }]).collect();
+    let mean = diag.iter().sum::<f64>() / diag.len().max(1) as f64;
+    let k: Vec<f64> = diag.iter().map(|&d| opts.latin_k * if opts.latin_k_mean { mean } else { d }).collect();
     let mut monitor = Monitor::new(p, opts, SolverKind::Latin, &r0);
     let mut z = r0;
     let mut w = p.velocity(&z);

@@ -95,11 +95,16 @@ pub struct SolverOptions {
     pub jacobi_omega: f64,
     /// LATIN search direction: `k = latin_k · diag(W_αα)` per component (compliance units).
     pub latin_k: f64,
+    /// LATIN: one `k = latin_k · mean(diag W)` for every component instead of the diagonal.
+    pub latin_k_mean: bool,
     /// APGD: iterations between two updates of the Tresca thresholds `s = μ r_n`.
     pub apgd_threshold_every: usize,
     /// Record the error every this many iterations for work-precision curves (0: only when checked);
     /// time spent on these extra evaluations is not counted in the solve time.
     pub history_every: usize,
+    /// Keep a copy of the iterate at every history point (`SolveReport::iterates`), for measures
+    /// the solver does not know (the energy norm of a structural problem).
+    pub keep_iterates: bool,
 }
 
 impl Default for SolverOptions {
@@ -113,8 +118,10 @@ impl Default for SolverOptions {
             seed: 0,
             jacobi_omega: 0.5,
             latin_k: 1.0,
+            latin_k_mean: false,
             apgd_threshold_every: 10,
             history_every: 0,
+            keep_iterates: false,
         }
     }
 }
@@ -142,6 +149,9 @@ pub struct SolveReport {
     pub stop_reason: String,
     pub r: Vec<f64>,
     pub u: Vec<f64>,
+    /// The iterates at the history points, when `keep_iterates` was asked for.
+    #[serde(skip)]
+    pub iterates: Vec<Vec<f64>>,
 }
 
 /// Solves `problem` from `r0` (warm start; zero if `None`).

@@ -28,6 +28,7 @@ pub struct Monitor<'a> {
     converged: bool,
     stop_reason: Option<String>,
     scratch_u: Vec<f64>,
+    iterates: Vec<Vec<f64>>,
 }
 
 impl<'a> Monitor<'a> {
@@ -48,6 +49,7 @@ impl<'a> Monitor<'a> {
             converged: false,
             stop_reason: None,
             scratch_u: vec![0.0; r0.len()],
+            iterates: Vec::new(),
         }
     }
 
@@ -59,10 +61,15 @@ impl<'a> Monitor<'a> {
         (self.start.elapsed() - self.excluded).as_secs_f64()
     }
 
-    fn record(&mut self, error: f64) {
+    fn record(&mut self, error: f64, r: &[f64]) {
         let point =
             HistoryPoint { iteration: self.iteration, seconds: self.elapsed(), w_products: self.w_products, error };
         self.history.push(point);
+        if self.opts.keep_iterates {
+            let t = Instant::now();
+            self.iterates.push(r.to_vec());
+            self.excluded += t.elapsed();
+        }
     }
 
     /// Stops the solve early for a reason the solver knows (breakdown, stagnation).
@@ -95,7 +102,7 @@ impl<'a> Monitor<'a> {
                 let needed = u.is_some() || light <= self.tol_light || last;
                 if needed || history_due {
                     let err = self.full_error(r, u, !needed);
-                    self.record(err);
+                    self.record(err, r);
                     if err <= self.opts.tol {
                         self.converged = true;
                     } else if light <= self.tol_light && err > 0.0 {
@@ -108,7 +115,7 @@ impl<'a> Monitor<'a> {
                 self.converged = m.satisfied(criterion);
                 if history_due || self.converged {
                     let err = self.full_error(r, u, true);
-                    self.record(err);
+                    self.record(err, r);
                 }
             }
         }
@@ -157,6 +164,9 @@ impl<'a> Monitor<'a> {
         }
         if self.history.last().map(|h| h.iteration) != Some(self.iteration) {
             self.history.push(HistoryPoint { iteration: self.iteration, seconds, w_products: self.w_products, error });
+            if self.opts.keep_iterates {
+                self.iterates.push(r.clone());
+            }
         }
         SolveReport {
             solver: self.kind,
@@ -169,6 +179,7 @@ impl<'a> Monitor<'a> {
             stop_reason: self.stop_reason.unwrap(),
             r,
             u,
+            iterates: self.iterates,
         }
     }
 }

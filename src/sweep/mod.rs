@@ -29,7 +29,8 @@ impl Device {
 pub struct Run {
     pub problem: String,
     pub contacts: usize,
-    pub solver: SolverKind,
+    /// The solver's name (a core solver, or `dual_cg` on a structural problem).
+    pub solver: String,
     pub device: Device,
     pub history: Vec<HistoryPoint>,
     pub converged: bool,
@@ -75,7 +76,7 @@ impl Run {
         Row {
             problem: self.problem.clone(),
             contacts: self.contacts,
-            solver: self.solver.name().into(),
+            solver: self.solver.clone(),
             device: self.device.name().into(),
             tol,
             converged,
@@ -117,7 +118,7 @@ pub fn run_one(
     Ok(Run {
         problem: name.to_string(),
         contacts: problem.n_contacts(),
-        solver,
+        solver: solver.name().to_string(),
         device,
         history,
         converged: report.converged,
@@ -138,7 +139,7 @@ pub fn markdown_table(runs: &[Run], tols: &[f64]) -> String {
     s.push_str(&"---|".repeat(tols.len()));
     s.push('\n');
     for r in runs {
-        s.push_str(&format!("| {} | {} | {} |", r.problem, r.solver.name(), r.device.name()));
+        s.push_str(&format!("| {} | {} | {} |", r.problem, r.solver, r.device.name()));
         for &t in tols {
             let row = r.at(t);
             if row.converged {
