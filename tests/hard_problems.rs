@@ -70,3 +70,56 @@ fn lmgc_criteria_stop_and_the_true_error_is_still_reported() {
     assert!(maxm.iterations >= qm16.iterations && qm16.iterations >= quad.iterations);
     assert!(maxm.iterations > quad.iterations, "maxm {} quad {}", maxm.iterations, quad.iterations);
 }
+
+#[test]
+fn velocity_criterion_bounds_every_contact() {
+    use moreau::problem::residual::velocity_error;
+    use moreau::solvers::StopCriterion;
+    // One contact alone: r = 0 while the contact closes at 2 m/s is a violation of 2 m/s.
+    let diag = [[0.5, 0.0, 0.0, 0.5]];
+    assert_eq!(velocity_error(&diag, &[-4.0, 0.0], &[0.3], &[0.0, 0.0], &[-2.0, 0.0]), 0.5);
+    // Its solution has none.
+    assert_eq!(velocity_error(&diag, &[-4.0, 0.0], &[0.3], &[8.0, 0.0], &[0.0, 0.0]), 0.0);
+
+    // A heavy column: the 2-norm error over all contacts is met long before the worst contact is.
+    let p = heavy_column(30, 100.0, 0.5);
+    let diag = p.w.diag_blocks();
+    let max_q = p.q.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let run = |criterion| {
+        let opts = SolverOptions { tol: 1e-6, max_iter: 200_000, criterion, ..Default::default() };
+        solve(&p, SolverKind::Nlgs, &opts, None)
+    };
+    let (natural, velocity) = (run(StopCriterion::Natural), run(StopCriterion::Velocity));
+    assert!(natural.converged && velocity.converged, "{} / {}", natural.stop_reason, velocity.stop_reason);
+    let worst = |r: &[f64], u: &[f64]| velocity_error(&diag, &p.q, &p.mu, r, u);
+    assert!(worst(&velocity.r, &velocity.u) <= 1e-6, "velocity criterion met: {:e}", worst(&velocity.r, &velocity.u));
+    assert!(velocity.iterations > natural.iterations, "{} vs {}", velocity.iterations, natural.iterations);
+    // Checked by hand: the largest violation in m/s, per contact.
+    let u = p.velocity(&velocity.r);
+    let violation = (0..p.n_contacts()).map(|a| (-u[2 * a]).max(0.0)).fold(0.0, f64::max);
+    assert!(violation <= 1e-6 * max_q, "a contact still closes at {violation:e} m/s");
+}
+
+#[test]
+fn a_solve_that_does_not_converge_returns_its_best_checked_iterate() {
+    // Stopped early, a non-monotone solver's last iterate can be worse than one it checked.
+    let p = lattice_packing(12, 12, 0.5, 7);
+    let mut found = Vec::new();
+    for kind in [SolverKind::Cpg, SolverKind::Pcpg, SolverKind::Jacobi, SolverKind::Nlgs, SolverKind::Latin] {
+        for max_iter in [20, 40, 80, 160, 320] {
+            let opts = SolverOptions { tol: 1e-14, max_iter, ..Default::default() };
+            let rep = solve(&p, kind, &opts, None);
+            assert!(!rep.converged);
+            let (e, _) = moreau::problem::residual::error_of(&p, &rep.r);
+            assert_eq!(e, rep.error, "{kind}: the reported error is that of the returned r");
+            // The history holds every check, the last iterate's included.
+            let best = rep.history.iter().map(|h| h.error).fold(f64::INFINITY, f64::min);
+            assert!(rep.error <= best * (1.0 + 1e-12), "{kind}: returned {:e}, best checked {best:e}", rep.error);
+            if rep.history.last().is_some_and(|h| h.error > rep.error) {
+                found.push((kind, max_iter));
+            }
+        }
+    }
+    eprintln!("last iterate worse than the best for {found:?}");
+    assert!(!found.is_empty(), "no case where the last iterate was worse than the best");
+}

@@ -13,7 +13,7 @@ pub enum GpuError {
     Unsupported(String),
     #[error("GPU: {0}")]
     Runtime(String),
-    #[error("the GPU path stops on the natural-map error only, not on LMGC90's {0} criterion")]
+    #[error("the GPU path stops on the natural-map error only, not on the {0} criterion")]
     Criterion(String),
 }
 

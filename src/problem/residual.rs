@@ -3,7 +3,7 @@
 //! `q → 0`); when that scale is below machine epsilon the raw norm is returned.
 
 use super::cone::natural_map;
-use super::{norm, ContactProblem};
+use super::{norm, ContactProblem, Mat2};
 
 /// Error of `r` given `u = W r + q` (no operator product).
 pub fn natural_map_error(q: &[f64], mu: &[f64], r: &[f64], u: &[f64]) -> f64 {
@@ -24,4 +24,24 @@ pub fn natural_map_error(q: &[f64], mu: &[f64], r: &[f64], u: &[f64]) -> f64 {
 pub fn error_of(problem: &ContactProblem, r: &[f64]) -> (f64, Vec<f64>) {
     let u = problem.velocity(r);
     (natural_map_error(&problem.q, &problem.mu, r, &u), u)
+}
+
+/// The largest per-contact residual in velocity units, relative to the largest free velocity:
+/// `max_α ‖F(W_αα,nn r_α, u_α)‖ / max|q|` (the natural map with De Saxcé's correction, its impulse
+/// turned into the velocity it would give the contact alone; the cone is invariant under that
+/// scaling). Unlike the 2-norm error, no single contact can hide among many: it bounds the
+/// velocity violation, hence the penetration per step, at every contact. Raw when `q` vanishes.
+pub fn velocity_error(diag: &[Mat2], q: &[f64], mu: &[f64], r: &[f64], u: &[f64]) -> f64 {
+    let mut worst: f64 = 0.0;
+    for (a, (&m, d)) in mu.iter().zip(diag).enumerate() {
+        let c = d[0];
+        let f = natural_map([c * r[2 * a], c * r[2 * a + 1]], [u[2 * a], u[2 * a + 1]], m);
+        worst = worst.max((f[0] * f[0] + f[1] * f[1]).sqrt());
+    }
+    let scale = q.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if scale > f64::EPSILON {
+        worst / scale
+    } else {
+        worst
+    }
 }

@@ -633,7 +633,7 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
                 cx.err(
                     solver_span.clone(),
                     "solver.criterion",
-                    format!("unknown criterion {c:?} (natural, quad, maxm, qm16)"),
+                    format!("unknown criterion {c:?} (natural, velocity, quad, maxm, qm16)"),
                 )
             })?;
         }

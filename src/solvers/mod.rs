@@ -80,6 +80,10 @@ pub enum StopCriterion {
     Maxm,
     /// LMGC90's `QM/16` compromise.
     Qm16,
+    /// Every contact's residual in velocity units is at most `tol` times the largest free
+    /// velocity ([`crate::problem::residual::velocity_error`]): for simulations, where the 2-norm
+    /// error lets one contact violate Signorini (and overlap) while the rest converge.
+    Velocity,
 }
 
 #[derive(Clone, Debug, Serialize)]

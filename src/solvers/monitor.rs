@@ -9,7 +9,8 @@
 
 use super::lmgc_criteria::LmgcMeasures;
 use super::{HistoryPoint, SolveReport, SolverKind, SolverOptions, StopCriterion};
-use crate::problem::residual::natural_map_error;
+use crate::problem::cone::project_box;
+use crate::problem::residual::{natural_map_error, velocity_error};
 use crate::problem::{norm, ContactProblem, Mat2};
 use std::time::{Duration, Instant};
 
@@ -29,6 +30,8 @@ pub struct Monitor<'a> {
     stop_reason: Option<String>,
     scratch_u: Vec<f64>,
     iterates: Vec<Vec<f64>>,
+    /// The checked iterate with the smallest judged error, returned if the solve does not converge.
+    best: Option<(f64, Vec<f64>)>,
 }
 
 impl<'a> Monitor<'a> {
@@ -50,6 +53,7 @@ impl<'a> Monitor<'a> {
             stop_reason: None,
             scratch_u: vec![0.0; r0.len()],
             iterates: Vec::new(),
+            best: None,
         }
     }
 
@@ -98,15 +102,24 @@ impl<'a> Monitor<'a> {
         let last = self.iteration >= self.opts.max_iter;
         let history_due = self.opts.history_every > 0 && self.iteration.is_multiple_of(self.opts.history_every);
         match self.opts.criterion {
-            StopCriterion::Natural => {
+            StopCriterion::Natural | StopCriterion::Velocity => {
                 let needed = u.is_some() || light <= self.tol_light || last;
                 if needed || history_due {
-                    let err = self.full_error(r, u, !needed);
+                    let (err, judged) = self.full_error(r, u, !needed);
                     self.record(err, r);
-                    if err <= self.opts.tol {
+                    if needed && self.best.as_ref().is_none_or(|(b, _)| judged < *b) {
+                        match &mut self.best {
+                            Some((b, kept)) => {
+                                *b = judged;
+                                kept.copy_from_slice(r);
+                            }
+                            None => self.best = Some((judged, r.to_vec())),
+                        }
+                    }
+                    if judged <= self.opts.tol {
                         self.converged = true;
-                    } else if light <= self.tol_light && err > 0.0 {
-                        self.tol_light = (light * self.opts.tol / err).min(self.tol_light);
+                    } else if light <= self.tol_light && judged > 0.0 {
+                        self.tol_light = (light * self.opts.tol / judged).min(self.tol_light);
                     }
                 }
             }
@@ -114,7 +127,7 @@ impl<'a> Monitor<'a> {
                 let m = LmgcMeasures::compute(self.diag.as_ref().unwrap(), &self.r_prev, r, self.opts.tol);
                 self.converged = m.satisfied(criterion);
                 if history_due || self.converged {
-                    let err = self.full_error(r, u, true);
+                    let (err, _) = self.full_error(r, u, true);
                     self.record(err, r);
                 }
             }
@@ -128,37 +141,65 @@ impl<'a> Monitor<'a> {
         self.stop_reason.is_some()
     }
 
-    /// Full error of `r`; one product unless `u` is given. `excluded` time is left out of the solve time.
-    fn full_error(&mut self, r: &[f64], u: Option<&[f64]>, excluded: bool) -> f64 {
+    /// Full error of `r` and the measure the criterion judges (the same unless it is `Velocity`);
+    /// one product unless `u` is given. `excluded` time is left out of the solve time.
+    fn full_error(&mut self, r: &[f64], u: Option<&[f64]>, excluded: bool) -> (f64, f64) {
         let t = Instant::now();
-        let err = match u {
-            Some(u) => natural_map_error(&self.problem.q, &self.problem.mu, r, u),
+        let mut uu = std::mem::take(&mut self.scratch_u);
+        let u = match u {
+            Some(u) => u,
             None => {
-                let mut uu = std::mem::take(&mut self.scratch_u);
                 self.problem.velocity_into(r, &mut uu);
                 if !excluded {
                     self.w_products += 1;
                 }
-                let e = natural_map_error(&self.problem.q, &self.problem.mu, r, &uu);
-                self.scratch_u = uu;
-                e
+                &uu
             }
         };
+        let err = natural_map_error(&self.problem.q, &self.problem.mu, r, u);
+        let judged = match (self.opts.criterion, &self.diag) {
+            (StopCriterion::Velocity, Some(d)) => velocity_error(d, &self.problem.q, &self.problem.mu, r, u),
+            _ => err,
+        };
+        self.scratch_u = uu;
         if excluded {
             self.excluded += t.elapsed();
         }
-        err
+        (err, judged)
     }
 
-    /// Final report: `u` and the error of the returned `r` are recomputed in f64 here.
-    pub fn finish(mut self, r: Vec<f64>) -> SolveReport {
+    /// The measure the criterion judges, of `r` with `u = W r + q`.
+    fn judged(&self, r: &[f64], u: &[f64], error: f64) -> f64 {
+        match (self.opts.criterion, &self.diag) {
+            (StopCriterion::Velocity, Some(d)) => velocity_error(d, &self.problem.q, &self.problem.mu, r, u),
+            _ => error,
+        }
+    }
+
+    /// Final report: `u` and the error of the returned `r` are recomputed in f64 here. A solve
+    /// that did not converge returns its best checked iterate when that is better than its last.
+    pub fn finish(mut self, mut r: Vec<f64>) -> SolveReport {
         let seconds = self.elapsed();
-        let u = self.problem.velocity(&r);
-        let error = natural_map_error(&self.problem.q, &self.problem.mu, &r, &u);
-        let converged = match self.opts.criterion {
-            StopCriterion::Natural => error <= self.opts.tol,
-            _ => self.converged && error.is_finite(),
-        };
+        let mut u = self.problem.velocity(&r);
+        let mut error = natural_map_error(&self.problem.q, &self.problem.mu, &r, &u);
+        let lmgc = !matches!(self.opts.criterion, StopCriterion::Natural | StopCriterion::Velocity);
+        let mut judged = self.judged(&r, &u, error);
+        if let (Some((best, mut kept)), false) = (self.best.take(), lmgc) {
+            if judged.is_nan() || (judged > self.opts.tol && best < judged) {
+                // Some solvers (APGD) iterate in a box that lags the cone: land on the cone first.
+                for (a, &m) in self.problem.mu.iter().enumerate() {
+                    let ra = project_box([kept[2 * a], kept[2 * a + 1]], m);
+                    kept[2 * a..2 * a + 2].copy_from_slice(&ra);
+                }
+                let kept_u = self.problem.velocity(&kept);
+                let kept_error = natural_map_error(&self.problem.q, &self.problem.mu, &kept, &kept_u);
+                let kept_judged = self.judged(&kept, &kept_u, kept_error);
+                if judged.is_nan() || kept_judged < judged {
+                    (r, u, error, judged) = (kept, kept_u, kept_error, kept_judged);
+                }
+            }
+        }
+        let converged = if lmgc { self.converged && error.is_finite() } else { judged <= self.opts.tol };
         if self.stop_reason.is_none() {
             self.stop_with(if converged { "converged" } else { "not converged" });
         }
