@@ -62,6 +62,24 @@ fn bounds(series: &[Series], log: bool, pick: fn(&(f64, f64)) -> f64) -> (f64, f
     }
 }
 
+/// Tick text: powers of ten only on a log axis (the others stay unlabelled, or they collide), and
+/// no binary-fraction noise (0.30000000000000004) on a linear one.
+fn tick_label(v: f64, log: bool) -> String {
+    if log {
+        let e = v.log10();
+        return if (e - e.round()).abs() < 1e-9 { format!("1e{}", e.round() as i32) } else { String::new() };
+    }
+    let a = v.abs();
+    if a == 0.0 {
+        "0".into()
+    } else if !(1e-3..1e4).contains(&a) {
+        format!("{v:.1e}")
+    } else {
+        let s = format!("{v:.3}");
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    }
+}
+
 fn draw<DB: DrawingBackend, X, Y>(root: DrawingArea<DB, plotters::coord::Shift>, c: &Chart, x: X, y: Y) -> Result<()>
 where
     X: AsRangedCoord<Value = f64>,
@@ -79,7 +97,7 @@ where
         .y_label_area_size(70)
         .build_cartesian_2d(x, y)
         .map_err(e)?;
-    let fmt = |log: bool| move |v: &f64| if log { format!("{v:.0e}") } else { format!("{v}") };
+    let fmt = |log: bool| move |v: &f64| tick_label(*v, log);
     chart
         .configure_mesh()
         .x_desc(c.x_label)

@@ -44,9 +44,12 @@ pub fn profiles(runs: &[Run], tol: f64) -> Vec<(String, Vec<(f64, f64)>)> {
         .iter_mut()
         .map(|(label, ratios)| {
             ratios.sort_by(f64::total_cmp);
+            // A step function: ρ jumps at each ratio.
             let mut points = vec![(1.0, ratios.iter().filter(|&&r| r <= 1.0).count() as f64 / n)];
-            for &r in ratios.iter().filter(|r| r.is_finite()) {
-                points.push((r.max(1.0), ratios.iter().filter(|&&x| x <= r).count() as f64 / n));
+            for &r in ratios.iter().filter(|r| r.is_finite() && **r > 1.0) {
+                let before = points.last().map_or(0.0, |p| p.1);
+                points.push((r, before));
+                points.push((r, ratios.iter().filter(|&&x| x <= r).count() as f64 / n));
             }
             points.push((tau_max, ratios.iter().filter(|x| x.is_finite()).count() as f64 / n));
             (label.clone(), points)
