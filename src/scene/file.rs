@@ -8,7 +8,7 @@ use glam::DVec2;
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::{deposition, generate, line_of, OutputSettings, Scene, SceneError};
+use super::{deposition, from_toml, generate, Ctx, OutputSettings, Scene, SceneError};
 use crate::solvers::{Ordering, SolverKind, SolverOptions, StopCriterion};
 use crate::stepping::StepSettings;
 use crate::world::{BodySpec, Effect, Effects, Interaction, Materials, PolygonShape, Wall, WallShape, World};
@@ -64,7 +64,7 @@ struct SolverSpec {
     max_iter: Option<usize>,
     ordering: Option<String>,
     omega: Option<f64>,
-    /// natural (default), quad, maxm, qm16 (LMGC90's tests).
+    /// natural (default), velocity, quad, maxm, qm16 (LMGC90's tests).
     criterion: Option<String>,
 }
 
@@ -214,27 +214,6 @@ struct GenerateSpec {
     seed: Option<u64>,
 }
 
-struct Ctx<'a> {
-    text: &'a str,
-    origin: &'a Path,
-}
-
-impl Ctx<'_> {
-    fn err<T>(
-        &self,
-        span: std::ops::Range<usize>,
-        field: impl Into<String>,
-        message: impl Into<String>,
-    ) -> Result<T, SceneError> {
-        Err(SceneError::Invalid {
-            path: self.origin.to_path_buf(),
-            line: line_of(self.text, span.start),
-            field: field.into(),
-            message: message.into(),
-        })
-    }
-}
-
 fn v(p: P) -> DVec2 {
     DVec2::new(p[0], p[1])
 }
@@ -259,11 +238,7 @@ fn check_law(law: &LawSpec) -> Result<Interaction, String> {
 }
 
 pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
-    let file: SceneFile = toml::from_str(text).map_err(|e| SceneError::Syntax {
-        path: origin.to_path_buf(),
-        line: e.span().map(|s| line_of(text, s.start)).unwrap_or(0),
-        message: e.message().trim().to_string(),
-    })?;
+    let file: SceneFile = from_toml(text, origin)?;
     let cx = Ctx { text, origin };
     let mut warnings = Vec::new();
 

@@ -99,6 +99,38 @@ pub fn parse(text: &str, origin: &Path) -> Result<Scene, SceneError> {
     file::build(text, origin)
 }
 
+/// Deserialises a scene file, a syntax error naming its line.
+pub(crate) fn from_toml<T: serde::de::DeserializeOwned>(text: &str, origin: &Path) -> Result<T, SceneError> {
+    toml::from_str(text).map_err(|e| SceneError::Syntax {
+        path: origin.to_path_buf(),
+        line: e.span().map(|s| line_of(text, s.start)).unwrap_or(0),
+        message: e.message().trim().to_string(),
+    })
+}
+
+/// Where errors of a file being built point: its text (for line numbers) and its path.
+pub(crate) struct Ctx<'a> {
+    pub text: &'a str,
+    pub origin: &'a Path,
+}
+
+impl Ctx<'_> {
+    /// An error naming the line of `span`, the field and what is wrong.
+    pub fn err<T>(
+        &self,
+        span: std::ops::Range<usize>,
+        field: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Result<T, SceneError> {
+        Err(SceneError::Invalid {
+            path: self.origin.to_path_buf(),
+            line: line_of(self.text, span.start),
+            field: field.into(),
+            message: message.into(),
+        })
+    }
+}
+
 /// 1-based line of a byte offset.
 pub(crate) fn line_of(text: &str, offset: usize) -> usize {
     text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1

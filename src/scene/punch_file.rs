@@ -6,7 +6,7 @@ use std::path::Path;
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::{line_of, SceneError};
+use super::{from_toml, Ctx, SceneError};
 use crate::solvers::SolverOptions;
 use crate::structure::study::StructuralSolver;
 use crate::structure::{Elastic, PunchGeometry, PunchModel};
@@ -66,17 +66,8 @@ pub struct PunchScene {
 }
 
 pub(super) fn build(text: &str, origin: &Path) -> Result<PunchScene, SceneError> {
-    let file: PunchFile = toml::from_str(text).map_err(|e| SceneError::Syntax {
-        path: origin.to_path_buf(),
-        line: e.span().map(|s| line_of(text, s.start)).unwrap_or(0),
-        message: e.message().trim().to_string(),
-    })?;
-    let err = |span: std::ops::Range<usize>, field: &str, message: String| SceneError::Invalid {
-        path: origin.to_path_buf(),
-        line: line_of(text, span.start),
-        field: field.to_string(),
-        message,
-    };
+    let file: PunchFile = from_toml(text, origin)?;
+    let cx = Ctx { text, origin };
     let spec = file.punch.get_ref();
     let geometry = PunchGeometry {
         half_width: spec.half_width,
@@ -87,29 +78,29 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<PunchScene, SceneError>
     };
     let material = Elastic { young: spec.young, poisson: spec.poisson };
     let model = PunchModel::new(geometry, material, spec.displacement)
-        .map_err(|e| err(file.punch.span(), "punch", e.to_string()))?;
+        .or_else(|e| cx.err(file.punch.span(), "punch", e.to_string()))?;
     let mut options = SolverOptions { tol: 1e-8, max_iter: 100_000, ..SolverOptions::default() };
     let mut solver = StructuralSolver::parse("nlgs").expect("nlgs is a solver");
     if let Some(s) = &file.solver {
         let spec = s.get_ref();
         if let Some(name) = &spec.name {
-            solver = StructuralSolver::parse(name).map_err(|m| err(s.span(), "solver.name", m))?;
+            solver = StructuralSolver::parse(name).or_else(|m| cx.err(s.span(), "solver.name", m))?;
         }
         if let Some(t) = spec.tol {
             if !(t.is_finite() && t > 0.0) {
-                return Err(err(s.span(), "solver.tol", format!("{t} must be finite and > 0")));
+                return cx.err(s.span(), "solver.tol", format!("{t} must be finite and > 0"));
             }
             options.tol = t;
         }
         if let Some(m) = spec.max_iter {
             if m == 0 {
-                return Err(err(s.span(), "solver.max_iter", "must be at least 1".into()));
+                return cx.err(s.span(), "solver.max_iter", "must be at least 1");
             }
             options.max_iter = m;
         }
         if let Some(k) = spec.latin_k {
             if !(k.is_finite() && k > 0.0) {
-                return Err(err(s.span(), "solver.latin_k", format!("{k} must be finite and > 0")));
+                return cx.err(s.span(), "solver.latin_k", format!("{k} must be finite and > 0"));
             }
             options.latin_k = k;
         }
