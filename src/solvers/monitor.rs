@@ -157,10 +157,7 @@ impl<'a> Monitor<'a> {
             }
         };
         let err = natural_map_error(&self.problem.q, &self.problem.mu, r, u);
-        let judged = match (self.opts.criterion, &self.diag) {
-            (StopCriterion::Velocity, Some(d)) => velocity_error(d, &self.problem.q, &self.problem.mu, r, u),
-            _ => err,
-        };
+        let judged = self.judged(r, u, err);
         self.scratch_u = uu;
         if excluded {
             self.excluded += t.elapsed();
