@@ -5,7 +5,10 @@
 //! flexibility `F = B K⁻¹ Bᵀ` on the contact dofs (eq. 17.4, FETI's interface operator), is
 //! built by an independent factorisation of the free-dof stiffness, so `M F = I` checks both.
 
+use std::sync::OnceLock;
+
 use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::Llt;
 use faer::sparse::{SparseColMat, Triplet};
 use faer::{Mat, Side};
 
@@ -37,6 +40,8 @@ pub struct PunchModel {
     dofs: Vec<Dof>,
     n_interior: usize,
     triplets: Vec<(usize, usize, f64)>,
+    /// Cholesky factor of `K_ii`, made once: by the condensation, reused by the back-substitution.
+    interior: OnceLock<Llt<usize, f64>>,
 }
 
 fn sparse(n: usize, t: &[Triplet<usize, usize, f64>]) -> Result<SparseColMat<usize, f64>, StructureError> {
@@ -72,7 +77,7 @@ impl PunchModel {
         }
         let gap = mesh.contact.iter().map(|&n| geometry.gap_at(mesh.nodes[n][0])).collect();
         let triplets = assemble(&mesh, &material).map_err(StructureError::Invalid)?;
-        Ok(Self { geometry, material, displacement, mesh, gap, dofs, n_interior, triplets })
+        Ok(Self { geometry, material, displacement, mesh, gap, dofs, n_interior, triplets, interior: OnceLock::new() })
     }
 
     pub fn n_contacts(&self) -> usize {
@@ -83,16 +88,34 @@ impl PunchModel {
         self.dofs.len()
     }
 
+    /// The Cholesky factor of the interior stiffness `K_ii`.
+    fn interior_factor(&self) -> Result<&Llt<usize, f64>, StructureError> {
+        if let Some(f) = self.interior.get() {
+            return Ok(f);
+        }
+        let k_ii: Vec<_> = self
+            .triplets
+            .iter()
+            .filter_map(|&(r, c, v)| match (self.dofs[r], self.dofs[c]) {
+                (Dof::Interior(a), Dof::Interior(b)) => Some(Triplet::new(a, b, v)),
+                _ => None,
+            })
+            .collect();
+        let llt = sparse(self.n_interior, &k_ii)?
+            .sp_cholesky(Side::Lower)
+            .map_err(|e| StructureError::Factorisation(format!("K_ii: {e:?}")))?;
+        Ok(self.interior.get_or_init(|| llt))
+    }
+
     /// The primal LCP: condensed stiffness `M = K_cc − K_ci K_ii⁻¹ K_ic` and `q`.
     pub fn condense(&self) -> Result<Lcp, StructureError> {
         let nc = self.n_contacts();
         let ni = self.n_interior;
-        let (mut k_ii, mut k_ic) = (Vec::new(), Vec::new());
+        let mut k_ic = Vec::new();
         let mut m = Mat::<f64>::zeros(nc, nc);
         let (mut f_i, mut f_c) = (vec![0.0; ni], vec![0.0; nc]); // −K_·d u_d
         for &(r, c, v) in &self.triplets {
             match (self.dofs[r], self.dofs[c]) {
-                (Dof::Interior(a), Dof::Interior(b)) => k_ii.push(Triplet::new(a, b, v)),
                 (Dof::Interior(a), Dof::Contact(b)) => k_ic.push((a, b, v)),
                 (Dof::Contact(a), Dof::Contact(b)) => m[(a, b)] += v,
                 (Dof::Interior(a), Dof::Imposed(x)) => f_i[a] -= v * x,
@@ -100,9 +123,7 @@ impl PunchModel {
                 _ => {}
             }
         }
-        let llt = sparse(ni, &k_ii)?
-            .sp_cholesky(Side::Lower)
-            .map_err(|e| StructureError::Factorisation(format!("K_ii: {e:?}")))?;
+        let llt = self.interior_factor()?;
         // M −= K_ciᵀ K_ii⁻¹ K_ic, a batch of columns at a time.
         for start in (0..nc).step_by(BATCH) {
             let end = (start + BATCH).min(nc);
@@ -169,10 +190,10 @@ impl PunchModel {
     }
 
     /// Every nodal displacement for the contact solution `z` (gaps after deformation): one more
-    /// solve with `K_ii` for the interior, `u_c = z − g` on the contact, imposed values elsewhere.
+    /// solve with the factor of `K_ii` for the interior, `u_c = z − g` on the contact, imposed
+    /// values elsewhere.
     pub fn displacements(&self, z: &[f64]) -> Result<Vec<f64>, StructureError> {
         let ni = self.n_interior;
-        let mut k_ii = Vec::new();
         let mut rhs = vec![0.0; ni];
         let value = |d: Dof| match d {
             Dof::Imposed(x) => Some(x),
@@ -180,18 +201,11 @@ impl PunchModel {
             Dof::Interior(_) => None,
         };
         for &(r, c, v) in &self.triplets {
-            if let Dof::Interior(a) = self.dofs[r] {
-                match (self.dofs[c], value(self.dofs[c])) {
-                    (Dof::Interior(b), _) => k_ii.push(Triplet::new(a, b, v)),
-                    (_, Some(x)) => rhs[a] -= v * x,
-                    _ => {}
-                }
+            if let (Dof::Interior(a), Some(x)) = (self.dofs[r], value(self.dofs[c])) {
+                rhs[a] -= v * x;
             }
         }
-        let llt = sparse(ni, &k_ii)?
-            .sp_cholesky(Side::Lower)
-            .map_err(|e| StructureError::Factorisation(format!("K_ii: {e:?}")))?;
-        let ui = llt.solve(Mat::from_fn(ni, 1, |a, _| rhs[a]));
+        let ui = self.interior_factor()?.solve(Mat::from_fn(ni, 1, |a, _| rhs[a]));
         Ok(self
             .dofs
             .iter()
