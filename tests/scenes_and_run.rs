@@ -281,3 +281,30 @@ fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("bad.toml"));
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// The GPU path stops on the natural-map error only: with another criterion `--device auto`
+/// picks the CPU and says why, and `--device gpu` is refused by name before any adapter is sought.
+#[test]
+fn a_criterion_the_gpu_lacks_keeps_the_run_on_the_cpu() {
+    let out = std::env::temp_dir().join(format!("moreau-criterion-{}", std::process::id()));
+    let run = |device: &str, criterion: &str| {
+        Command::new(env!("CARGO_BIN_EXE_moreau"))
+            .args(["run", scenes_dir().join("pile.toml").to_str().unwrap(), "--steps", "1", "--quiet"])
+            .args(["--device", device, "--criterion", criterion, "--out"])
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    let auto = run("auto", "velocity");
+    let stderr = String::from_utf8_lossy(&auto.stderr);
+    assert!(auto.status.success(), "{stderr}");
+    assert!(
+        stderr
+            .contains("device: cpu (the GPU path stops on the natural-map error only, not on the velocity criterion)"),
+        "{stderr}"
+    );
+    let gpu = run("gpu", "maxm");
+    let stderr = String::from_utf8_lossy(&gpu.stderr);
+    assert!(!gpu.status.success());
+    assert!(stderr.contains("not on the maxm criterion"), "{stderr}");
+}

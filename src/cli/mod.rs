@@ -186,12 +186,17 @@ impl Device {
 /// Picks the device for a solve with `solver`: `gpu` demands an adapter (a hardware one, else
 /// the software adapter) and a GPU version of the solver; `auto` takes the GPU when both exist
 /// and otherwise says why it uses the CPU.
-pub(crate) fn resolve_device(choice: DeviceChoice, solver: SolverKind) -> Result<Device> {
+pub(crate) fn resolve_device(choice: DeviceChoice, solver: SolverKind, criterion: StopCriterion) -> Result<Device> {
+    // The GPU path stops on the natural-map error only.
+    let criterion_name = (criterion != StopCriterion::Natural).then(|| format!("{criterion:?}").to_lowercase());
     match choice {
         DeviceChoice::Cpu => Ok(Device::Cpu),
         DeviceChoice::Gpu => {
             if !crate::gpu::supports(solver) {
                 bail!("--device gpu: {}", crate::gpu::GpuError::Unsupported(solver.name().to_string()));
+            }
+            if let Some(c) = criterion_name {
+                bail!("--device gpu: {}", crate::gpu::GpuError::Criterion(c));
             }
             let ctx = crate::gpu::GpuContext::new()?;
             eprintln!("device: gpu — {}", ctx.describe());
@@ -200,6 +205,10 @@ pub(crate) fn resolve_device(choice: DeviceChoice, solver: SolverKind) -> Result
         DeviceChoice::Auto => {
             if !crate::gpu::supports(solver) {
                 eprintln!("device: cpu (the GPU path has no {} solver yet)", solver.name());
+                return Ok(Device::Cpu);
+            }
+            if let Some(c) = criterion_name {
+                eprintln!("device: cpu (the GPU path stops on the natural-map error only, not on the {c} criterion)");
                 return Ok(Device::Cpu);
             }
             match crate::gpu::GpuContext::new() {
@@ -233,7 +242,7 @@ fn solve_command(a: SolveArgs) -> Result<()> {
         bail!("--max-iter must be at least 1");
     }
     let problem = read_fc2d(&a.file)?;
-    let device = resolve_device(a.device, a.solver)?;
+    let device = resolve_device(a.device, a.solver, a.criterion)?;
     let opts = SolverOptions {
         tol: a.tol,
         max_iter: a.max_iter,

@@ -95,7 +95,7 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         }
         scene.settings.options.max_iter = m;
     }
-    let device = resolve_device(a.device, scene.settings.solver)?;
+    let device = resolve_device(a.device, scene.settings.solver, scene.settings.options.criterion)?;
     let vtk_every = a.vtk_every.unwrap_or(if scene.output.vtk { scene.output.every.max(1) } else { 0 });
     let picture_step = a.picture_step.or(scene.output.picture_step).unwrap_or(scene.steps).min(scene.steps);
     let out_dir = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.name));
