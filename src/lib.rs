@@ -3,11 +3,14 @@
 //! * [`problem`]: the one-step frictional contact problem `u = W r + q` and its operator `W`
 //!   (matrix-free `B M⁻¹ Bᵀ` or explicit block-sparse), the Coulomb cone, the error measure.
 //! * [`solvers`]: the CPU reference solvers in f64 (NLGS, CPG, PCPG, LATIN, projected Jacobi, APGD).
+//! * [`backend`]: where a solve runs (CPU threads or a GPU), chosen in one place, with the GPU's
+//!   f32 solves finished in f64 on the CPU when the tolerance asks for it.
 //! * [`structure`]: the founding paper's Signorini punch (finite elements condensed to an LCP) and
 //!   the dual projected CG.
 //! * [`io`]: Siconos fc2d problem files, JSON reports.
 //! * [`cli`]: the `moreau` command line.
 
+pub mod backend;
 pub mod cli;
 pub mod detection;
 pub mod gpu;

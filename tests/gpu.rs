@@ -224,7 +224,7 @@ fn gpu_simulation(ctx: GpuContext, toml: &str) -> (moreau::stepping::Simulation,
     let s = moreau::scene::parse(toml, Path::new("gpu_scene.toml")).unwrap();
     let steps = s.steps;
     let mut sim = moreau::stepping::Simulation::new(s.world, s.settings).unwrap();
-    sim.use_gpu(ctx).unwrap();
+    sim.set_backend(moreau::backend::Backend::gpu(ctx)).unwrap();
     (sim, steps)
 }
 

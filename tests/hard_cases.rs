@@ -39,7 +39,7 @@ fn run(name: &str, toml: &str, ctx: Option<GpuContext>) -> Outcome {
     let mut sim = Simulation::new(s.world, s.settings).unwrap();
     let device = if ctx.is_some() { "gpu" } else { "cpu" };
     if let Some(c) = ctx {
-        sim.use_gpu(c).unwrap();
+        sim.set_backend(moreau::backend::Backend::gpu(c)).unwrap();
     }
     let mut reports = Vec::with_capacity(steps);
     for _ in 0..steps {

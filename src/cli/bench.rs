@@ -5,6 +5,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Result};
 
+use crate::backend::Backend;
 use crate::gpu::{timing::kernel_times, GpuContext};
 use crate::problem::generate::lattice_packing;
 use crate::solvers::jacobi::jacobi_update;
@@ -33,16 +34,17 @@ pub fn bench_command(a: BenchArgs) -> Result<()> {
     if a.repeats == 0 {
         bail!("--repeats must be at least 1");
     }
-    let ctx = match GpuContext::new() {
-        Ok(ctx) => Some(ctx),
+    let gpu = match GpuContext::new() {
+        Ok(ctx) => Some(Backend::gpu(ctx)),
         Err(e) => {
             eprintln!("no GPU column: {e}");
             None
         }
     };
-    let adapter = ctx.as_ref().map(|c| c.describe()).unwrap_or_else(|| "none".into());
+    let ctx = gpu.as_ref().and_then(|g| g.gpu_context());
+    let adapter = ctx.map(|c| c.describe()).unwrap_or_else(|| "none".into());
     println!("GPU: {adapter}");
-    if ctx.as_ref().is_some_and(|c| c.is_software()) {
+    if ctx.is_some_and(|c| c.is_software()) {
         println!("(a software adapter: its column measures the CPU running lavapipe, not a GPU)");
     }
     println!(
@@ -69,12 +71,12 @@ pub fn bench_command(a: BenchArgs) -> Result<()> {
             jacobi_update(&mut rr, &u, &p.mu, &step);
         }
         let cpu_iteration = start.elapsed().as_secs_f64() / a.repeats as f64;
-        let gpu = match &ctx {
+        let times = match ctx {
             Some(c) => Some(kernel_times(c, &p, a.repeats)?),
             None => None,
         };
         let fmt = |s: f64| format!("{:.1} µs", s * 1e6);
-        let (gp, gi, rp, ri) = match &gpu {
+        let (gp, gi, rp, ri) = match &times {
             Some(t) => (
                 fmt(t.product),
                 fmt(t.jacobi_iteration),
@@ -93,9 +95,9 @@ pub fn bench_command(a: BenchArgs) -> Result<()> {
                 c.iterations,
                 if c.converged { "" } else { ", not converged" }
             ));
-            match &ctx {
-                Some(ctx) => {
-                    let g = crate::gpu::solve(ctx, &p, SolverKind::Jacobi, &opts, None)?;
+            match &gpu {
+                Some(backend) => {
+                    let g = backend.solve(&p, SolverKind::Jacobi, &opts, None)?;
                     row.push_str(&format!(
                         " {:.3} s ({} its{}) |",
                         g.seconds,

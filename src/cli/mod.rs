@@ -5,10 +5,11 @@ mod punch;
 mod run;
 mod sweep;
 
+use crate::backend::Backend;
 use crate::io::report::{summary_line, SolveOutput};
 use crate::io::siconos::{read_fc2d, write_fc2d, Storage};
 use crate::problem::generate;
-use crate::solvers::{solve, Ordering, SolverKind, SolverOptions, StopCriterion};
+use crate::solvers::{Ordering, SolverKind, SolverOptions, StopCriterion};
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 use std::path::PathBuf;
@@ -21,13 +22,7 @@ struct Cli {
     command: Command,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum DeviceChoice {
-    /// The GPU if one is found, else the CPU (says which).
-    Auto,
-    Cpu,
-    Gpu,
-}
+pub use crate::backend::DeviceChoice;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum StorageChoice {
@@ -87,6 +82,9 @@ struct SolveArgs {
     /// Write the result as JSON here.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// CPU threads (0: all cores; 1: the sequential reference path).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
 }
 
 #[derive(Subcommand)]
@@ -168,61 +166,19 @@ fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// Where a solve runs.
-pub(crate) enum Device {
-    Cpu,
-    Gpu(Box<crate::gpu::GpuContext>),
+/// Picks the device for solves of `solver` with `opts` (the backend decides) and says which.
+pub(crate) fn choose_backend(choice: DeviceChoice, solver: SolverKind, opts: &SolverOptions) -> Result<Backend> {
+    let backend = Backend::choose(choice, solver, opts)?;
+    eprintln!("device: {}", backend.describe());
+    Ok(backend)
 }
 
-impl Device {
-    pub(crate) fn name(&self) -> &'static str {
-        match self {
-            Device::Cpu => "cpu",
-            Device::Gpu(_) => "gpu",
-        }
-    }
-}
-
-/// Picks the device for a solve with `solver`: `gpu` demands an adapter (a hardware one, else
-/// the software adapter) and a GPU version of the solver; `auto` takes the GPU when both exist
-/// and otherwise says why it uses the CPU.
-pub(crate) fn resolve_device(choice: DeviceChoice, solver: SolverKind, criterion: StopCriterion) -> Result<Device> {
-    // The GPU path stops on the natural-map error only.
-    let criterion_name = (criterion != StopCriterion::Natural).then(|| format!("{criterion:?}").to_lowercase());
-    match choice {
-        DeviceChoice::Cpu => Ok(Device::Cpu),
-        DeviceChoice::Gpu => {
-            if !crate::gpu::supports(solver) {
-                bail!("--device gpu: {}", crate::gpu::GpuError::Unsupported(solver.name().to_string()));
-            }
-            if let Some(c) = criterion_name {
-                bail!("--device gpu: {}", crate::gpu::GpuError::Criterion(c));
-            }
-            let ctx = crate::gpu::GpuContext::new()?;
-            eprintln!("device: gpu — {}", ctx.describe());
-            Ok(Device::Gpu(Box::new(ctx)))
-        }
-        DeviceChoice::Auto => {
-            if !crate::gpu::supports(solver) {
-                eprintln!("device: cpu (the GPU path has no {} solver yet)", solver.name());
-                return Ok(Device::Cpu);
-            }
-            if let Some(c) = criterion_name {
-                eprintln!("device: cpu (the GPU path stops on the natural-map error only, not on the {c} criterion)");
-                return Ok(Device::Cpu);
-            }
-            match crate::gpu::GpuContext::new() {
-                Ok(ctx) => {
-                    eprintln!("device: gpu — {}", ctx.describe());
-                    Ok(Device::Gpu(Box::new(ctx)))
-                }
-                Err(e) => {
-                    eprintln!("device: cpu ({e})");
-                    Ok(Device::Cpu)
-                }
-            }
-        }
-    }
+/// Runs the rest of the command on a rayon pool of `threads` threads (0: all cores).
+pub(crate) fn set_threads(threads: usize) -> Result<()> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build_global()
+        .map_err(|e| anyhow::anyhow!("--threads {threads}: {e}"))
 }
 
 fn solve_command(a: SolveArgs) -> Result<()> {
@@ -241,8 +197,8 @@ fn solve_command(a: SolveArgs) -> Result<()> {
     if a.max_iter == 0 {
         bail!("--max-iter must be at least 1");
     }
+    set_threads(a.threads)?;
     let problem = read_fc2d(&a.file)?;
-    let device = resolve_device(a.device, a.solver, a.criterion)?;
     let opts = SolverOptions {
         tol: a.tol,
         max_iter: a.max_iter,
@@ -257,11 +213,10 @@ fn solve_command(a: SolveArgs) -> Result<()> {
         history_every: a.history_every,
         keep_iterates: false,
     };
-    let (report, adapter) = match &device {
-        Device::Cpu => (solve(&problem, a.solver, &opts, None), None),
-        Device::Gpu(ctx) => (crate::gpu::solve(ctx, &problem, a.solver, &opts, None)?, Some(ctx.adapter_name())),
-    };
-    let device = device.name();
+    let backend = choose_backend(a.device, a.solver, &opts)?;
+    let report = backend.solve(&problem, a.solver, &opts, None)?;
+    let adapter = backend.adapter_name();
+    let device = backend.name();
     println!("{}", summary_line(&report, device, a.tol));
     if !report.converged {
         eprintln!("warning: {} did not converge: {}", report.solver, report.stop_reason);

@@ -7,7 +7,7 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::punch::{run_punch, PunchOverrides};
-use super::{resolve_device, Device, DeviceChoice};
+use super::{choose_backend, set_threads, DeviceChoice};
 use crate::io::run_output::{RunOutput, RunSummary};
 use crate::io::siconos::{write_fc2d, Storage};
 use crate::scene;
@@ -49,6 +49,9 @@ pub struct RunArgs {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+    /// CPU threads for detection and solves (0: all cores; 1: the sequential reference path).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
 }
 
 /// Non-converged steps reported one by one; the rest are counted in the summary and steps.csv.
@@ -95,16 +98,17 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         }
         scene.settings.options.max_iter = m;
     }
-    let device = resolve_device(a.device, scene.settings.solver, scene.settings.options.criterion)?;
+    set_threads(a.threads)?;
+    let backend = choose_backend(a.device, scene.settings.solver, &scene.settings.options)?;
     let vtk_every = a.vtk_every.unwrap_or(if scene.output.vtk { scene.output.every.max(1) } else { 0 });
     let picture_step = a.picture_step.or(scene.output.picture_step).unwrap_or(scene.steps).min(scene.steps);
     let out_dir = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.name));
     let mut output = RunOutput::create(&out_dir)?;
     let mut summary = RunSummary {
         scene: scene.name.clone(),
-        device: match &device {
-            Device::Cpu => "cpu".to_string(),
-            Device::Gpu(ctx) => format!("gpu ({})", ctx.adapter_name()),
+        device: match backend.adapter_name() {
+            None => format!("cpu ({} threads)", rayon::current_num_threads()),
+            Some(adapter) => format!("gpu ({adapter})"),
         },
         solver: scene.settings.solver.name().to_string(),
         tol: scene.settings.options.tol,
@@ -126,9 +130,7 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         summary.tol
     );
     let mut sim = Simulation::new(scene.world, scene.settings)?;
-    if let Device::Gpu(ctx) = device {
-        sim.use_gpu(*ctx)?;
-    }
+    sim.set_backend(backend)?;
     sim.keep_problems(!a.dump_problem.is_empty());
     let bar = if a.quiet { ProgressBar::hidden() } else { ProgressBar::new(steps as u64) };
     bar.set_style(

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
+use crate::backend::{gpu_refusal, Backend};
 use crate::gpu::GpuContext;
 use crate::io::plots::{font_available, write_chart, Chart, Series};
 use crate::io::siconos::read_fc2d;
@@ -131,21 +132,28 @@ pub fn sweep_command(a: SweepArgs) -> Result<()> {
     let gpu = if devices.contains(&Device::Gpu) {
         let ctx = GpuContext::new()?;
         eprintln!("gpu: {}", ctx.describe());
-        Some(ctx)
+        Some(Backend::gpu(ctx))
     } else {
         None
     };
+    let cpu = Backend::cpu();
     let problems = problems_of(&a.target, &a.scene_steps)?;
     let tightest = *tols.last().unwrap();
     let mut runs: Vec<Run> = Vec::new();
     for (name, p) in &problems {
         for &solver in &kinds {
             for &device in &devices {
-                if device == Device::Gpu && !crate::gpu::supports(solver) {
-                    eprintln!("{name}: {} has no GPU version, skipped on the gpu", solver.name());
+                let backend = match (device, &gpu) {
+                    (Device::Gpu, Some(g)) => g,
+                    _ => &cpu,
+                };
+                if let Some(why) =
+                    (device == Device::Gpu).then(|| gpu_refusal(solver, &SolverOptions::default())).flatten()
+                {
+                    eprintln!("{name}: {} skipped on the gpu ({why})", solver.name());
                     continue;
                 }
-                let run = run_one(name, p, solver, device, gpu.as_ref(), tightest, a.max_iter)?;
+                let run = run_one(name, p, solver, backend, tightest, a.max_iter)?;
                 eprintln!(
                     "{name} ({} contacts): {} on {}: error {:.2e} after {} its, {:.3} s ({})",
                     p.n_contacts(),

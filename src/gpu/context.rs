@@ -32,15 +32,44 @@ impl GpuContext {
     /// The best adapter: hardware first, then the software fallback.
     pub fn new() -> Result<Self, GpuError> {
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let request = |fallback: bool| {
-            pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        let adapter = match Self::hardware_adapter(&instance) {
+            Some(a) => a,
+            None => pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
                 power_preference: wgpu::PowerPreference::HighPerformance,
-                force_fallback_adapter: fallback,
+                force_fallback_adapter: true,
                 compatible_surface: None,
                 ..Default::default()
             }))
+            .or_else(|_| pollster::block_on(instance.request_adapter(&Default::default())))
+            .map_err(|e| GpuError::NoAdapter(e.to_string()))?,
         };
-        let adapter = request(false).or_else(|_| request(true)).map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        Self::on(adapter)
+    }
+
+    /// A hardware adapter only (a discrete GPU first); the software adapter is never taken.
+    pub fn hardware() -> Result<Self, GpuError> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = Self::hardware_adapter(&instance).ok_or_else(|| {
+            GpuError::NoAdapter("no hardware GPU adapter (a software adapter is taken only by --device gpu)".into())
+        })?;
+        Self::on(adapter)
+    }
+
+    fn hardware_adapter(instance: &wgpu::Instance) -> Option<wgpu::Adapter> {
+        let rank = |t: wgpu::DeviceType| match t {
+            wgpu::DeviceType::DiscreteGpu => 0,
+            wgpu::DeviceType::IntegratedGpu => 1,
+            wgpu::DeviceType::VirtualGpu | wgpu::DeviceType::Other => 2,
+            wgpu::DeviceType::Cpu => 3,
+        };
+        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        adapters
+            .into_iter()
+            .filter(|a| a.get_info().device_type != wgpu::DeviceType::Cpu)
+            .min_by_key(|a| rank(a.get_info().device_type))
+    }
+
+    fn on(adapter: wgpu::Adapter) -> Result<Self, GpuError> {
         let info = adapter.get_info();
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("moreau"),

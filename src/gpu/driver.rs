@@ -15,11 +15,8 @@ use super::reduce::{partials_len, Dot};
 use crate::problem::cone::project_cone;
 use crate::problem::residual::error_of;
 use crate::problem::ContactProblem;
+use crate::solvers::stopping::{StallWatch, StopReason};
 use crate::solvers::{HistoryPoint, SolveReport, SolverKind, SolverOptions};
-
-/// Iterations without a 1 % improvement of the error before the solve is declared stalled at the
-/// f32 floor: at least this many, and at least as many as it took to get there.
-const STALLED_ITERATIONS: usize = 500;
 
 /// The f64 starting impulses, projected on the cone (warm start, else zero).
 pub fn initial_impulses(p: &ContactProblem, r0: Option<&[f64]>) -> Vec<f64> {
@@ -59,22 +56,25 @@ pub fn iterate(
     let (mut error, _) = error_of(p, &r);
     let mut history = vec![HistoryPoint { iteration: 0, seconds: start.elapsed().as_secs_f64(), w_products: 0, error }];
     let (mut best, mut best_r) = (error, r.clone());
-    // The last error that improved on its predecessor mark by 1 %, and when.
-    let (mut mark, mut improved_at) = (error, 0usize);
+    let mut stall = StallWatch::new(error);
     let mut iterations = 0usize;
     let mut batch = 8usize;
-    let stop_reason;
+    let (stop, stop_reason);
     loop {
         if error <= opts.tol {
-            stop_reason = format!("converged: error {error:.3e} <= tol {:.1e}", opts.tol);
+            (stop, stop_reason) =
+                (StopReason::Converged, format!("converged: error {error:.3e} <= tol {:.1e}", opts.tol));
             break;
         }
         if iterations >= opts.max_iter {
-            stop_reason = format!("not converged: max_iter = {} reached", opts.max_iter);
+            (stop, stop_reason) = (StopReason::MaxIter, format!("not converged: max_iter = {} reached", opts.max_iter));
             break;
         }
-        if iterations - improved_at >= STALLED_ITERATIONS.max(improved_at) {
-            stop_reason = format!("not converged: stalled near {mark:.3e} (the f32 floor of this problem on the GPU)");
+        if let Some(mark) = stall.stalled(iterations) {
+            (stop, stop_reason) = (
+                StopReason::Stalled,
+                format!("not converged: stalled near {mark:.3e} (the f32 floor of this problem on the GPU)"),
+            );
             break;
         }
         let k = batch.min(opts.max_iter - iterations);
@@ -86,7 +86,7 @@ pub fn iterate(
         iterations += k;
         let estimate = checker.estimate(ctx)?;
         if !estimate.is_finite() {
-            stop_reason = "diverged: non-finite impulses".to_string();
+            (stop, stop_reason) = (StopReason::Diverged, "diverged: non-finite impulses".to_string());
             break;
         }
         // Near the tolerance the f32 estimate is not trusted either way: judge in f64.
@@ -105,9 +105,7 @@ pub fn iterate(
             w_products: products_per_iteration * iterations + 1,
             error,
         });
-        if error < 0.99 * mark {
-            (mark, improved_at) = (error, iterations);
-        }
+        stall.record(iterations, error);
         if exact && error < best {
             best = error;
             best_r.clone_from(&r);
@@ -123,15 +121,24 @@ pub fn iterate(
         r = best_r;
         (error, u) = error_of(p, &r);
     }
+    let converged = error <= opts.tol;
     Ok(SolveReport {
         solver: kind,
-        converged: error <= opts.tol,
+        converged,
         iterations,
         error,
         seconds: start.elapsed().as_secs_f64(),
         w_products: products_per_iteration * iterations + 1,
         history,
+        stop: if converged {
+            StopReason::Converged
+        } else if stop == StopReason::Converged {
+            StopReason::Stalled
+        } else {
+            stop
+        },
         stop_reason,
+        parts: Vec::new(),
         r,
         u,
         iterates: Vec::new(),

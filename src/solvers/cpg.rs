@@ -6,6 +6,7 @@
 //! Coulomb. Per iteration: two products with `W` (`W p` and `W r`) and three dot products.
 
 use super::monitor::Monitor;
+use super::stopping::StopReason;
 use super::{SolveReport, SolverKind, SolverOptions};
 use crate::problem::cone::{project_box, status_of, ContactStatus};
 use crate::problem::{dot, ContactProblem};
@@ -53,7 +54,7 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, precondi
             dir.copy_from_slice(&w);
             num = dot(&neg_grad, &dir);
             if num <= 0.0 {
-                monitor.stop_with("stalled: the projected gradient vanished");
+                monitor.stop_with(StopReason::Stalled, "stalled: the projected gradient vanished");
                 monitor.observe(&r, Some(&u));
                 break;
             }
@@ -62,7 +63,7 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, precondi
         monitor.w_products += 1;
         let delta = dot(&dir, &y);
         if delta <= 1e-300 {
-            monitor.stop_with("breakdown: p·Wp = 0");
+            monitor.stop_with(StopReason::Breakdown, "breakdown: p·Wp = 0");
             monitor.observe(&r, Some(&u));
             break;
         }

@@ -18,6 +18,9 @@ pub mod latin;
 pub mod lmgc_criteria;
 pub mod monitor;
 pub mod nlgs;
+pub mod stopping;
+
+pub use stopping::StopReason;
 
 use crate::problem::ContactProblem;
 use serde::Serialize;
@@ -149,13 +152,30 @@ pub struct SolveReport {
     pub seconds: f64,
     pub w_products: usize,
     pub history: Vec<HistoryPoint>,
+    /// Why the solve stopped.
+    pub stop: StopReason,
     /// Why the solve stopped, in words.
     pub stop_reason: String,
+    /// A solve split across devices (mixed precision: f32 on the GPU, then f64 on the CPU) lists
+    /// each part here; empty for a solve on one device.
+    pub parts: Vec<SolvePart>,
     pub r: Vec<f64>,
     pub u: Vec<f64>,
     /// The iterates at the history points, when `keep_iterates` was asked for.
     #[serde(skip)]
     pub iterates: Vec<Vec<f64>>,
+}
+
+/// One device's share of a solve split across devices.
+#[derive(Clone, Debug, Serialize)]
+pub struct SolvePart {
+    /// `gpu` (f32) or `cpu` (f64).
+    pub device: String,
+    pub iterations: usize,
+    pub seconds: f64,
+    /// The f64 error when this part handed over (or finished).
+    pub error: f64,
+    pub stop: StopReason,
 }
 
 /// Solves `problem` from `r0` (warm start; zero if `None`).

@@ -14,7 +14,7 @@ use crate::detection::{Antagonist, Configuration, DetectedContact};
 use crate::problem::cone::status_of;
 use crate::problem::matrix_free::Dofs;
 use crate::problem::{Body, Contact, ContactProblem, Delassus, MatrixFree};
-use crate::solvers::solve;
+
 use crate::world::World;
 
 /// Generalised velocity vector ([`Dofs::per_body`] entries per body) of the bodies' velocities.
@@ -228,11 +228,10 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
             .map_err(|e| StepError::Problem { step, message: e.to_string() })?;
         // 4. Solve.
         let solve_start = Instant::now();
-        let solved = match &sim.gpu {
-            Some(ctx) => crate::gpu::solve(ctx, &problem, sim.settings.solver, &sim.settings.options, Some(&r0))
-                .map_err(|e| StepError::Gpu { step, message: e.to_string() })?,
-            None => solve(&problem, sim.settings.solver, &sim.settings.options, Some(&r0)),
-        };
+        let solved = sim
+            .backend
+            .solve(&problem, sim.settings.solver, &sim.settings.options, Some(&r0))
+            .map_err(|e| StepError::Device { step, message: e.to_string() })?;
         report.solve_seconds = solve_start.elapsed().as_secs_f64();
         report.iterations = solved.iterations;
         report.error = solved.error;

@@ -6,6 +6,7 @@ use serde::Serialize;
 use thiserror::Error;
 
 use super::WarmStart;
+use crate::backend::Backend;
 use crate::detection::{DetectedContact, Detector};
 use crate::problem::cone::ContactStatus;
 use crate::problem::ContactProblem;
@@ -85,7 +86,7 @@ pub enum StepError {
     #[error("step {step}: the contact problem is invalid: {message}")]
     Problem { step: usize, message: String },
     #[error("step {step}: {message}")]
-    Gpu { step: usize, message: String },
+    Device { step: usize, message: String },
 }
 
 pub struct Simulation {
@@ -98,8 +99,8 @@ pub struct Simulation {
     pub(super) warm_start: WarmStart,
     pub(super) keep_problem: bool,
     pub(super) last_problem: Option<ContactProblem>,
-    /// Solve each step on this GPU instead of the CPU.
-    pub(super) gpu: Option<crate::gpu::GpuContext>,
+    /// Where each step's contact problem is solved.
+    pub(super) backend: Backend,
 }
 
 impl Simulation {
@@ -115,24 +116,21 @@ impl Simulation {
             warm_start: WarmStart::default(),
             keep_problem: false,
             last_problem: None,
-            gpu: None,
+            backend: Backend::cpu(),
         })
     }
 
-    /// Solves every step on `ctx` (the solver must exist on the GPU path).
-    pub fn use_gpu(&mut self, ctx: crate::gpu::GpuContext) -> Result<(), StepError> {
-        if !crate::gpu::supports(self.settings.solver) {
-            return Err(StepError::Settings(
-                crate::gpu::GpuError::Unsupported(self.settings.solver.name().to_string()).to_string(),
-            ));
-        }
-        self.gpu = Some(ctx);
+    /// Solves every step on `backend`, refused up front when that device cannot do the
+    /// settings' solve (the same check the command line makes).
+    pub fn set_backend(&mut self, backend: Backend) -> Result<(), StepError> {
+        backend.check(self.settings.solver, &self.settings.options).map_err(|e| StepError::Settings(e.to_string()))?;
+        self.backend = backend;
         Ok(())
     }
 
-    /// The GPU that solves the steps, if any.
-    pub fn gpu(&self) -> Option<&crate::gpu::GpuContext> {
-        self.gpu.as_ref()
+    /// Where the steps are solved.
+    pub fn backend(&self) -> &Backend {
+        &self.backend
     }
 
     /// Adds a body; its density comes from its material.

@@ -5,9 +5,9 @@
 
 pub mod profile;
 
-use crate::gpu::GpuContext;
+use crate::backend::{Backend, BackendError};
 use crate::problem::ContactProblem;
-use crate::solvers::{solve, HistoryPoint, SolveReport, SolverKind, SolverOptions};
+use crate::solvers::{HistoryPoint, SolverKind, SolverOptions};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Device {
@@ -88,23 +88,19 @@ impl Run {
     }
 }
 
-/// Solves `problem` with `solver` on `device` to `tol` (the tightest of the sweep), recording the
-/// error history: every iteration up to 2,000 iterations, then about 1,000 points in all.
+/// Solves `problem` with `solver` on `backend` to `tol` (the tightest of the sweep), recording
+/// the error history: every iteration up to 2,000 iterations, then about 1,000 points in all.
 pub fn run_one(
     name: &str,
     problem: &ContactProblem,
     solver: SolverKind,
-    device: Device,
-    gpu: Option<&GpuContext>,
+    backend: &Backend,
     tol: f64,
     max_iter: usize,
-) -> Result<Run, crate::gpu::GpuError> {
+) -> Result<Run, BackendError> {
     let opts = SolverOptions { tol, max_iter, history_every: (max_iter / 1000).max(1), ..SolverOptions::default() };
-    let report: SolveReport = match (device, gpu) {
-        (Device::Cpu, _) => solve(problem, solver, &opts, None),
-        (Device::Gpu, Some(ctx)) => crate::gpu::solve(ctx, problem, solver, &opts, None)?,
-        (Device::Gpu, None) => return Err(crate::gpu::GpuError::NoAdapter("no adapter for the GPU column".into())),
-    };
+    let device = if backend.is_gpu() { Device::Gpu } else { Device::Cpu };
+    let report = backend.solve(problem, solver, &opts, None)?;
     let mut history = report.history.clone();
     // The history is monotone in time; make it end on the returned state.
     if history.last().is_none_or(|h| h.iteration != report.iterations) {

@@ -1,0 +1,247 @@
+//! Where a solve runs, decided in one place: the device (CPU, or a GPU context), what it can do
+//! (solver, criterion, options), the choice `auto` makes and why, and the one `solve` that the
+//! command line, the time step, the sweeps and the benchmarks call.
+//!
+//! A GPU iterates in f32. Asked for a tolerance below [`F32_FLOOR`], or stalled above the
+//! tolerance, a GPU solve finishes in f64 on the CPU from the GPU's impulses (mixed precision);
+//! the report lists both parts.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use thiserror::Error;
+
+use crate::gpu::{GpuContext, GpuError};
+use crate::problem::ContactProblem;
+use crate::solvers::{
+    self, HistoryPoint, Ordering, SolvePart, SolveReport, SolverKind, SolverOptions, StopCriterion, StopReason,
+};
+
+/// The natural-map error f32 iterations reach on granular problems with margin (their floor
+/// was measured between 4e-7 and 2e-5): `auto` takes a GPU only for tolerances at or above it,
+/// and a GPU solve asked for less finishes on the CPU in f64.
+pub const F32_FLOOR: f64 = 1e-5;
+
+/// What the user asked for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum DeviceChoice {
+    /// A hardware GPU when there is one and it can do the solve; else the CPU (says which and why).
+    Auto,
+    Cpu,
+    /// A GPU: hardware, else the software adapter (a correctness tool, never fast).
+    Gpu,
+}
+
+/// Where solves run.
+#[derive(Clone)]
+pub enum Device {
+    Cpu,
+    Gpu(Arc<GpuContext>),
+}
+
+#[derive(Debug, Error)]
+pub enum BackendError {
+    #[error("--device gpu: {0}")]
+    Refused(String),
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+}
+
+/// A device and the reason it was chosen.
+#[derive(Clone)]
+pub struct Backend {
+    device: Device,
+    reason: String,
+}
+
+impl Default for Backend {
+    fn default() -> Self {
+        Self::cpu()
+    }
+}
+
+/// Why the GPU path cannot run this solve, if it cannot.
+pub fn gpu_refusal(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
+    if kind == SolverKind::Latin {
+        return Some(GpuError::Unsupported(kind.name().into()).to_string());
+    }
+    if opts.criterion != StopCriterion::Natural {
+        return Some(GpuError::Criterion(format!("{:?}", opts.criterion).to_lowercase()).to_string());
+    }
+    if kind == SolverKind::Nlgs && opts.omega != 1.0 {
+        return Some(format!("the GPU's NLGS has no relaxation (omega = {})", opts.omega));
+    }
+    if kind == SolverKind::Nlgs && opts.ordering != Ordering::Forward {
+        return Some(format!("the GPU's NLGS sweeps in colour order, not {:?}", opts.ordering).to_lowercase());
+    }
+    if opts.keep_iterates {
+        return Some("the GPU path keeps no iterates".into());
+    }
+    None
+}
+
+impl Backend {
+    /// The CPU, f64.
+    pub fn cpu() -> Self {
+        Self { device: Device::Cpu, reason: "asked for".into() }
+    }
+
+    /// This GPU context.
+    pub fn gpu(ctx: GpuContext) -> Self {
+        Self { device: Device::Gpu(Arc::new(ctx)), reason: "asked for".into() }
+    }
+
+    /// Decides where solves of `kind` with `opts` run, before any work: `cpu`; `gpu` (a hardware
+    /// adapter, else the software one) or an error naming what the GPU path lacks; `auto`, a
+    /// hardware GPU that can do the solve to a tolerance f32 reaches, else the CPU.
+    pub fn choose(choice: DeviceChoice, kind: SolverKind, opts: &SolverOptions) -> Result<Self, BackendError> {
+        let cpu = |reason: String| Ok(Self { device: Device::Cpu, reason });
+        match choice {
+            DeviceChoice::Cpu => Ok(Self::cpu()),
+            DeviceChoice::Gpu => {
+                if let Some(why) = gpu_refusal(kind, opts) {
+                    return Err(BackendError::Refused(why));
+                }
+                let ctx = GpuContext::new()?;
+                let reason = if ctx.is_software() {
+                    "asked for; this is the software adapter: a correctness tool, slower than the CPU".into()
+                } else {
+                    "asked for".into()
+                };
+                Ok(Self { device: Device::Gpu(Arc::new(ctx)), reason })
+            }
+            DeviceChoice::Auto => {
+                if let Some(why) = gpu_refusal(kind, opts) {
+                    return cpu(why);
+                }
+                if opts.tol < F32_FLOOR {
+                    return cpu(format!(
+                        "tol {:.0e} is below what f32 iterations reach ({F32_FLOOR:.0e}); --device gpu iterates in f32, then finishes in f64 on the CPU",
+                        opts.tol
+                    ));
+                }
+                match GpuContext::hardware() {
+                    Ok(ctx) => Ok(Self { device: Device::Gpu(Arc::new(ctx)), reason: "hardware GPU found".into() }),
+                    Err(e) => cpu(e.to_string()),
+                }
+            }
+        }
+    }
+
+    pub fn device(&self) -> &Device {
+        &self.device
+    }
+
+    /// The GPU context, if on a GPU (for GPU-only measurements such as kernel timings).
+    pub fn gpu_context(&self) -> Option<&GpuContext> {
+        match &self.device {
+            Device::Cpu => None,
+            Device::Gpu(ctx) => Some(ctx),
+        }
+    }
+
+    pub fn is_gpu(&self) -> bool {
+        matches!(self.device, Device::Gpu(_))
+    }
+
+    /// `cpu` or `gpu`, as recorded in outputs.
+    pub fn name(&self) -> &'static str {
+        match self.device {
+            Device::Cpu => "cpu",
+            Device::Gpu(_) => "gpu",
+        }
+    }
+
+    /// The GPU adapter's name, if on a GPU.
+    pub fn adapter_name(&self) -> Option<String> {
+        match &self.device {
+            Device::Cpu => None,
+            Device::Gpu(ctx) => Some(ctx.adapter_name()),
+        }
+    }
+
+    /// One line for the user: the device and why it was chosen.
+    pub fn describe(&self) -> String {
+        match &self.device {
+            Device::Cpu => format!("cpu, {} thread(s) ({})", rayon::current_num_threads(), self.reason),
+            Device::Gpu(ctx) => format!("gpu — {} ({})", ctx.describe(), self.reason),
+        }
+    }
+
+    /// Whether this device can do the solve; the error names what is missing.
+    pub fn check(&self, kind: SolverKind, opts: &SolverOptions) -> Result<(), BackendError> {
+        match (&self.device, gpu_refusal(kind, opts)) {
+            (Device::Gpu(_), Some(why)) => Err(BackendError::Refused(why)),
+            _ => Ok(()),
+        }
+    }
+
+    /// Solves `problem` from `r0` (warm start; zero if `None`) on this device.
+    pub fn solve(
+        &self,
+        problem: &ContactProblem,
+        kind: SolverKind,
+        opts: &SolverOptions,
+        r0: Option<&[f64]>,
+    ) -> Result<SolveReport, BackendError> {
+        match &self.device {
+            Device::Cpu => Ok(solvers::solve(problem, kind, opts, r0)),
+            Device::Gpu(ctx) => {
+                self.check(kind, opts)?;
+                solve_mixed(ctx, problem, kind, opts, r0)
+            }
+        }
+    }
+}
+
+/// f32 on the GPU to `max(tol, F32_FLOOR)`, then, if that misses `tol`, f64 on the CPU from the
+/// GPU's impulses with what is left of the iteration budget.
+fn solve_mixed(
+    ctx: &GpuContext,
+    problem: &ContactProblem,
+    kind: SolverKind,
+    opts: &SolverOptions,
+    r0: Option<&[f64]>,
+) -> Result<SolveReport, BackendError> {
+    let gpu_opts = SolverOptions { tol: opts.tol.max(F32_FLOOR), ..opts.clone() };
+    let gpu = crate::gpu::solve(ctx, problem, kind, &gpu_opts, r0)?;
+    let finish_on_cpu = !gpu.converged || gpu.error > opts.tol;
+    let left = opts.max_iter.saturating_sub(gpu.iterations);
+    if !finish_on_cpu || left == 0 || gpu.stop == StopReason::Diverged {
+        return Ok(gpu);
+    }
+    let start = Instant::now();
+    let cpu_opts = SolverOptions { max_iter: left, ..opts.clone() };
+    let cpu = solvers::solve(problem, kind, &cpu_opts, Some(&gpu.r));
+    let cpu_seconds = start.elapsed().as_secs_f64();
+    let part = |device: &str, r: &SolveReport, seconds: f64| SolvePart {
+        device: device.into(),
+        iterations: r.iterations,
+        seconds,
+        error: r.error,
+        stop: r.stop,
+    };
+    let parts = vec![part("gpu", &gpu, gpu.seconds), part("cpu", &cpu, cpu_seconds)];
+    let mut history = gpu.history.clone();
+    history.extend(cpu.history.iter().map(|h| HistoryPoint {
+        iteration: gpu.iterations + h.iteration,
+        seconds: gpu.seconds + h.seconds,
+        w_products: gpu.w_products + h.w_products,
+        error: h.error,
+    }));
+    Ok(SolveReport {
+        solver: kind,
+        converged: cpu.converged,
+        iterations: gpu.iterations + cpu.iterations,
+        error: cpu.error,
+        seconds: gpu.seconds + cpu_seconds,
+        w_products: gpu.w_products + cpu.w_products,
+        history,
+        stop: cpu.stop,
+        stop_reason: format!("gpu (f32): {}; cpu (f64): {}", gpu.stop_reason, cpu.stop_reason),
+        parts,
+        r: cpu.r,
+        u: cpu.u,
+        iterates: Vec::new(),
+    })
+}

@@ -1,0 +1,118 @@
+//! The one stopping policy of every solve, CPU ([`super::monitor`]) and GPU (`gpu/driver.rs`):
+//! why a solve stopped, how often the full error is checked, and when a solve has stalled.
+
+use serde::Serialize;
+use std::fmt;
+
+/// Why a solve stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopReason {
+    /// The judged error of the returned impulses is at most the tolerance.
+    Converged,
+    /// The iteration budget ran out first.
+    MaxIter,
+    /// The error stopped improving (on the GPU: the f32 floor of the problem).
+    Stalled,
+    /// The iterate became non-finite.
+    Diverged,
+    /// The method broke down (a zero curvature in a conjugate gradient).
+    Breakdown,
+}
+
+impl StopReason {
+    pub fn name(self) -> &'static str {
+        match self {
+            StopReason::Converged => "converged",
+            StopReason::MaxIter => "max_iter",
+            StopReason::Stalled => "stalled",
+            StopReason::Diverged => "diverged",
+            StopReason::Breakdown => "breakdown",
+        }
+    }
+}
+
+impl fmt::Display for StopReason {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A full check costs about one `W` product (plus the residual, a fraction of one). Checking once
+/// this many product-equivalents of work keeps checks at ≤ 10 % of a solve; a Gauss–Seidel sweep
+/// counts as one product-equivalent, so NLGS is checked at least every 10 sweeps.
+pub const CHECK_WORK: usize = 10;
+
+/// Decides when the full error is due, by work done since the last check.
+#[derive(Clone, Debug, Default)]
+pub struct CheckCadence {
+    work_since_check: usize,
+}
+
+impl CheckCadence {
+    /// Records one iteration that cost `work` product-equivalents (at least 1) and says whether a
+    /// check is due by cost.
+    pub fn after_iteration(&mut self, work: usize) -> bool {
+        self.work_since_check += work.max(1);
+        self.work_since_check >= CHECK_WORK
+    }
+
+    /// A check happened (for whatever reason): the work count starts again.
+    pub fn checked(&mut self) {
+        self.work_since_check = 0;
+    }
+}
+
+/// Iterations without a 1 % improvement of the error before a solve is declared stalled: at
+/// least this many, and at least as many as it took to get there.
+pub const STALLED_ITERATIONS: usize = 500;
+
+/// Watches the checked errors for progress.
+#[derive(Clone, Debug)]
+pub struct StallWatch {
+    mark: f64,
+    improved_at: usize,
+}
+
+impl StallWatch {
+    pub fn new(initial_error: f64) -> Self {
+        Self { mark: initial_error, improved_at: 0 }
+    }
+
+    /// Records the error checked after `iteration` iterations.
+    pub fn record(&mut self, iteration: usize, error: f64) {
+        if error < 0.99 * self.mark {
+            (self.mark, self.improved_at) = (error, iteration);
+        }
+    }
+
+    /// The error it stalled near, once no 1 % gain came for long enough.
+    pub fn stalled(&self, iteration: usize) -> Option<f64> {
+        (iteration - self.improved_at >= STALLED_ITERATIONS.max(self.improved_at)).then_some(self.mark)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cadence_is_due_after_ten_units_of_work() {
+        let mut c = CheckCadence::default();
+        let due: Vec<bool> = (0..12).map(|_| c.after_iteration(0)).collect();
+        assert_eq!(due.iter().position(|&d| d), Some(CHECK_WORK - 1));
+        c.checked();
+        assert!(!c.after_iteration(1));
+        assert!(c.after_iteration(20), "an iteration worth 20 products is checked at once");
+    }
+
+    #[test]
+    fn stall_needs_no_gain_for_as_long_as_it_took() {
+        let mut s = StallWatch::new(1.0);
+        s.record(1000, 1e-3);
+        assert!(s.stalled(1999).is_none());
+        assert_eq!(s.stalled(2000), Some(1e-3));
+        s.record(2000, 0.995e-3);
+        assert!(s.stalled(2000).is_some(), "a gain below 1 % is no progress");
+    }
+}
