@@ -7,6 +7,7 @@
 //!   f32 solves finished in f64 on the CPU when the tolerance asks for it.
 //! * [`structure`]: the founding paper's Signorini punch (finite elements condensed to an LCP) and
 //!   the dual projected CG.
+//! * [`parallel`]: how the CPU path uses threads (fixed chunks: the same bits on any thread count).
 //! * [`io`]: Siconos fc2d problem files, JSON reports.
 //! * [`cli`]: the `moreau` command line.
 
@@ -15,6 +16,7 @@ pub mod cli;
 pub mod detection;
 pub mod gpu;
 pub mod io;
+pub mod parallel;
 pub mod problem;
 pub mod scene;
 pub mod solvers;

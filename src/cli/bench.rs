@@ -1,6 +1,7 @@
 //! `moreau bench`: CPU vs GPU on lattice packings of growing size, as a table — time per W
 //! product and per projected-Jacobi iteration, and optionally the time to reach a tolerance.
 
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Result};
@@ -8,8 +9,10 @@ use anyhow::{bail, Result};
 use crate::backend::Backend;
 use crate::gpu::{timing::kernel_times, GpuContext};
 use crate::problem::generate::lattice_packing;
+use crate::problem::ContactProblem;
 use crate::solvers::jacobi::jacobi_update;
 use crate::solvers::{solve, SolverKind, SolverOptions};
+use crate::stepping::Simulation;
 
 #[derive(clap::Args)]
 pub struct BenchArgs {
@@ -22,6 +25,19 @@ pub struct BenchArgs {
     /// Also solve each problem to this tolerance with Jacobi on both devices (wall time to tol).
     #[arg(long)]
     solve_to: Option<f64>,
+    /// Instead of lattices: step this scene on each thread count of --threads-list and time its
+    /// steps, its W products and its NLGS sweeps (contact updates per second).
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Steps of the scene timed per thread count.
+    #[arg(long, default_value_t = 10)]
+    steps: usize,
+    /// NLGS sweeps timed on the last step's problem.
+    #[arg(long, default_value_t = 50)]
+    sweeps: usize,
+    /// Thread counts compared with --scene (default: 1 and all cores).
+    #[arg(long, value_delimiter = ',')]
+    threads_list: Vec<usize>,
 }
 
 fn lattice_of(contacts: usize) -> (usize, usize) {
@@ -30,9 +46,18 @@ fn lattice_of(contacts: usize) -> (usize, usize) {
     ((contacts / (2 * ny)).max(1), ny)
 }
 
+/// Largest lattice `moreau bench` builds (about 4 GB of operator and vectors).
+const MAX_BENCH_CONTACTS: usize = 20_000_000;
+
 pub fn bench_command(a: BenchArgs) -> Result<()> {
     if a.repeats == 0 {
         bail!("--repeats must be at least 1");
+    }
+    if let Some(&big) = a.sizes.iter().find(|&&s| s > MAX_BENCH_CONTACTS || s == 0) {
+        bail!("--sizes {big}: each size must lie in 1..={MAX_BENCH_CONTACTS} contacts");
+    }
+    if let Some(scene) = &a.scene {
+        return scene_bench(scene, &a);
     }
     let gpu = match GpuContext::new() {
         Ok(ctx) => Some(Backend::gpu(ctx)),
@@ -111,4 +136,90 @@ pub fn bench_command(a: BenchArgs) -> Result<()> {
         println!("{row}");
     }
     Ok(())
+}
+
+/// Steps, products and sweeps of a scene on each thread count, side by side in one run.
+fn scene_bench(path: &Path, a: &BenchArgs) -> Result<()> {
+    if a.steps == 0 || a.sweeps == 0 {
+        bail!("--steps and --sweeps must be at least 1");
+    }
+    let mut threads = a.threads_list.clone();
+    if threads.is_empty() {
+        threads = vec![1, std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)];
+        threads.dedup();
+    }
+    if let Some(t) = threads.iter().find(|&&t| t == 0 || t > 1024) {
+        bail!("--threads-list {t}: each thread count must lie in 1..=1024");
+    }
+    let mut reference: Option<ContactProblem> = None;
+    let mut rows = Vec::new();
+    for &t in &threads {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build()?;
+        let row = pool.install(|| -> Result<SceneRow> {
+            let scene = crate::scene::load(path)?;
+            let opts = scene.settings.options.clone();
+            let mut sim = Simulation::new(scene.world, scene.settings)?;
+            sim.keep_problems(true);
+            let (mut step_s, mut detect_s, mut its, mut contacts) = (0.0, 0.0, 0usize, 0usize);
+            for _ in 0..a.steps {
+                let r = sim.step()?;
+                (step_s, detect_s) = (step_s + r.seconds, detect_s + r.detection_seconds);
+                (its, contacts) = (its + r.iterations, contacts + r.contacts);
+            }
+            let p = reference.get_or_insert_with(|| sim.last_problem().cloned().expect("a scene with contacts"));
+            let nc = p.n_contacts();
+            let r: Vec<f64> = vec![0.0; 2 * nc];
+            let mut u = vec![0.0; 2 * nc];
+            let start = Instant::now();
+            for _ in 0..a.repeats {
+                p.w.apply(&r, &mut u);
+            }
+            let product = start.elapsed().as_secs_f64() / a.repeats as f64;
+            // Fixed sweeps: a tolerance no sweep count reaches, no check but the last.
+            let sweep_opts = SolverOptions { tol: 1e-300, max_iter: a.sweeps, ..opts.clone() };
+            let sweeps = crate::solvers::solve(p, SolverKind::Nlgs, &sweep_opts, None);
+            let sweep = sweeps.seconds / a.sweeps as f64;
+            Ok(SceneRow {
+                threads: t,
+                contacts: contacts / a.steps,
+                step_ms: 1e3 * step_s / a.steps as f64,
+                detect_ms: 1e3 * detect_s / a.steps as f64,
+                sweeps_per_step: its as f64 / a.steps as f64,
+                product_ms: 1e3 * product,
+                sweep_ms: 1e3 * sweep,
+                updates_per_s: nc as f64 / sweep,
+            })
+        })?;
+        rows.push(row);
+    }
+    println!("scene {} ({} steps timed per thread count; products and sweeps on one problem)", path.display(), a.steps);
+    println!("| threads | contacts | ms/step | detection ms | sweeps/step | W product ms | NLGS sweep ms | contact updates/s | sweep speed-up |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let base = rows[0].sweep_ms;
+    for r in &rows {
+        println!(
+            "| {} | {} | {:.1} | {:.2} | {:.1} | {:.3} | {:.3} | {:.2e} | {:.2}x |",
+            r.threads,
+            r.contacts,
+            r.step_ms,
+            r.detect_ms,
+            r.sweeps_per_step,
+            r.product_ms,
+            r.sweep_ms,
+            r.updates_per_s,
+            base / r.sweep_ms
+        );
+    }
+    Ok(())
+}
+
+struct SceneRow {
+    threads: usize,
+    contacts: usize,
+    step_ms: f64,
+    detect_ms: f64,
+    sweeps_per_step: f64,
+    product_ms: f64,
+    sweep_ms: f64,
+    updates_per_s: f64,
 }

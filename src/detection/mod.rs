@@ -7,6 +7,9 @@ pub mod narrow_phase;
 pub mod polygon_clip;
 
 use glam::DVec2;
+use rayon::prelude::*;
+
+use crate::parallel::{parallel, CHUNK};
 
 use crate::world::{Bodies, Wall};
 
@@ -77,24 +80,48 @@ impl Detector {
         self.radius.clear();
         self.radius.extend((0..bodies.len()).map(|k| bodies.bounding_radius[k] + reach.get(k).copied().unwrap_or(0.0)));
         self.grid.candidate_pairs(config.position, &self.radius, alert, &mut self.pairs);
-        let mut out = Vec::with_capacity(self.pairs.len() + bodies.len() / 4);
-        for &(i, j) in &self.pairs {
-            let pair_alert =
-                alert + reach.get(i as usize).copied().unwrap_or(0.0) + reach.get(j as usize).copied().unwrap_or(0.0);
-            narrow_phase::body_body(bodies, config, i as usize, j as usize, pair_alert, &mut out);
-        }
+        let reach_of = |k: usize| reach.get(k).copied().unwrap_or(0.0);
+        let pair_contacts = |pairs: &[(u32, u32)], out: &mut Vec<DetectedContact>| {
+            for &(i, j) in pairs {
+                let pair_alert = alert + reach_of(i as usize) + reach_of(j as usize);
+                narrow_phase::body_body(bodies, config, i as usize, j as usize, pair_alert, out);
+            }
+        };
         let rmax = self.radius.iter().copied().fold(0.0, f64::max);
-        for (w, wall) in walls.iter().enumerate() {
-            let wr = wall_reach.get(w).copied().unwrap_or(0.0);
-            let (lo, hi) = wall.aabb();
-            let (lo, hi) = (lo - (rmax + alert + wr), hi + (rmax + alert + wr));
-            for k in 0..bodies.len() {
-                let p = config.position[k];
-                if p.x >= lo.x && p.y >= lo.y && p.x <= hi.x && p.y <= hi.y && bodies.inv_mass[k] > 0.0 {
-                    let body_alert = alert + wr + reach.get(k).copied().unwrap_or(0.0);
-                    narrow_phase::body_wall(bodies, config, k, w, wall, body_alert, &mut out);
+        let wall_contacts = |first: usize, last: usize, out: &mut Vec<DetectedContact>| {
+            for (w, wall) in walls.iter().enumerate() {
+                let wr = wall_reach.get(w).copied().unwrap_or(0.0);
+                let (lo, hi) = wall.aabb();
+                let (lo, hi) = (lo - (rmax + alert + wr), hi + (rmax + alert + wr));
+                for k in first..last {
+                    let p = config.position[k];
+                    if p.x >= lo.x && p.y >= lo.y && p.x <= hi.x && p.y <= hi.y && bodies.inv_mass[k] > 0.0 {
+                        narrow_phase::body_wall(bodies, config, k, w, wall, alert + wr + reach_of(k), out);
+                    }
                 }
             }
+        };
+        let mut out = Vec::with_capacity(self.pairs.len() + bodies.len() / 4);
+        if parallel(self.pairs.len()) {
+            // Chunks on threads; the sort below puts contacts in one order whatever the split.
+            let parts: Vec<Vec<DetectedContact>> = self
+                .pairs
+                .par_chunks(CHUNK)
+                .map(|c| {
+                    let mut part = Vec::with_capacity(c.len());
+                    pair_contacts(c, &mut part);
+                    part
+                })
+                .chain((0..bodies.len().div_ceil(CHUNK)).into_par_iter().map(|c| {
+                    let mut part = Vec::new();
+                    wall_contacts(c * CHUNK, ((c + 1) * CHUNK).min(bodies.len()), &mut part);
+                    part
+                }))
+                .collect();
+            parts.into_iter().for_each(|p| out.extend(p));
+        } else {
+            pair_contacts(&self.pairs, &mut out);
+            wall_contacts(0, bodies.len(), &mut out);
         }
         out.sort_unstable_by_key(|a| a.key());
         out

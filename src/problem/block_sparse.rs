@@ -1,7 +1,10 @@
 //! Explicit `W` as a sparse matrix of 2×2 blocks, rows by contact (block CSR).
 //! Used for problems read from files; row access makes Gauss–Seidel sweeps cheap.
 
+use rayon::prelude::*;
+
 use super::Mat2;
+use crate::parallel::{parallel, CHUNK};
 
 #[derive(Clone, Debug)]
 pub struct BlockSparse {
@@ -57,6 +60,26 @@ impl BlockSparse {
         self.row_ptr.len() - 1
     }
 
+    /// Neighbours of each contact: a block in its row or its column (the pattern need not be
+    /// symmetric), sorted.
+    pub fn adjacency(&self) -> Vec<Vec<usize>> {
+        let n = self.n_contacts();
+        let mut adjacency = vec![Vec::new(); n];
+        for a in 0..n {
+            for &b in &self.cols[self.row_ptr[a]..self.row_ptr[a + 1]] {
+                if b != a {
+                    adjacency[a].push(b);
+                    adjacency[b].push(a);
+                }
+            }
+        }
+        for list in &mut adjacency {
+            list.sort_unstable();
+            list.dedup();
+        }
+        adjacency
+    }
+
     pub fn n_blocks(&self) -> usize {
         self.blocks.len()
     }
@@ -74,11 +97,17 @@ impl BlockSparse {
         s
     }
 
+    /// `out = W r` (rows on threads for large problems; each row is summed the same way).
     pub fn apply(&self, r: &[f64], out: &mut [f64]) {
-        for a in 0..self.n_contacts() {
-            let s = self.row_product(a, r);
-            out[2 * a] = s[0];
-            out[2 * a + 1] = s[1];
+        let rows = |first: usize, out: &mut [f64]| {
+            for (k, o) in out.chunks_mut(2).enumerate() {
+                o.copy_from_slice(&self.row_product(first + k, r));
+            }
+        };
+        if parallel(self.n_contacts()) {
+            out.par_chunks_mut(2 * CHUNK).enumerate().for_each(|(c, o)| rows(c * CHUNK, o));
+        } else {
+            rows(0, out);
         }
     }
 

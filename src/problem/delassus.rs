@@ -17,6 +17,13 @@ pub struct SweepState {
     body_velocity: Vec<f64>,
 }
 
+impl SweepState {
+    /// The body velocities of a matrix-free sweep (empty for an explicit `W`).
+    pub(crate) fn body_velocity_mut(&mut self) -> &mut [f64] {
+        &mut self.body_velocity
+    }
+}
+
 impl Delassus {
     pub fn n_contacts(&self) -> usize {
         match self {
@@ -57,7 +64,7 @@ impl Delassus {
     #[inline]
     pub fn row(&self, a: usize, r: &[f64], state: &SweepState) -> [f64; 2] {
         match self {
-            Delassus::MatrixFree(m) => m.gather_one(a, &state.body_velocity),
+            Delassus::MatrixFree(m) => m.gather_one(a, state.body_velocity.as_slice()),
             Delassus::Sparse(s) => s.row_product(a, r),
         }
     }
@@ -65,7 +72,7 @@ impl Delassus {
     #[inline]
     pub fn record_change(&self, a: usize, dr: [f64; 2], state: &mut SweepState) {
         if let Delassus::MatrixFree(m) = self {
-            m.scatter_one(a, dr[0], dr[1], &mut state.body_velocity);
+            m.scatter_one(a, dr[0], dr[1], state.body_velocity.as_mut_slice());
         }
     }
 

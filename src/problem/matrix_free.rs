@@ -3,7 +3,12 @@
 //! A product never forms `W`: it scatters impulses to body velocities (`M⁻¹ Bᵀ r`) and gathers
 //! them back at the contacts (`B v`), in O(contacts + bodies).
 
+use std::sync::OnceLock;
+
+use rayon::prelude::*;
+
 use super::{BlockSparse, Mat2};
+use crate::parallel::{parallel, CHUNK};
 
 /// A rigid body's inverse mass and inverse inertia. A static body (a wall) has both zero.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -67,6 +72,68 @@ pub(crate) struct ContactRows {
     pub(crate) n: [f64; 2],
 }
 
+/// Where a product keeps body velocities: a plain slice, or [`SharedSlice`] for a threaded
+/// Gauss–Seidel sweep.
+pub(crate) trait Velocities {
+    fn get(&self, k: usize) -> f64;
+    fn add(&mut self, k: usize, x: f64);
+}
+
+impl Velocities for [f64] {
+    #[inline]
+    fn get(&self, k: usize) -> f64 {
+        self[k]
+    }
+    #[inline]
+    fn add(&mut self, k: usize, x: f64) {
+        self[k] += x;
+    }
+}
+
+/// A slice (body velocities, impulses) written by several threads at once, each to places no
+/// other thread touches (the contacts of one colour share no moving body, and fixed bodies are
+/// never written).
+#[derive(Clone, Copy)]
+pub(crate) struct SharedSlice {
+    ptr: *mut f64,
+    len: usize,
+}
+
+// SAFETY: used only within one colour of a proper colouring, where no two contacts touch the
+// same moving body: every element is read and written by one thread at a time.
+unsafe impl Send for SharedSlice {}
+unsafe impl Sync for SharedSlice {}
+
+impl SharedSlice {
+    pub(crate) fn new(v: &mut [f64]) -> Self {
+        Self { ptr: v.as_mut_ptr(), len: v.len() }
+    }
+}
+
+impl SharedSlice {
+    #[inline]
+    pub(crate) fn set(&mut self, k: usize, x: f64) {
+        assert!(k < self.len);
+        // SAFETY: as in `get`.
+        unsafe { *self.ptr.add(k) = x }
+    }
+}
+
+impl Velocities for SharedSlice {
+    #[inline]
+    fn get(&self, k: usize) -> f64 {
+        assert!(k < self.len);
+        // SAFETY: in bounds; no other thread writes element k during this colour (see above).
+        unsafe { *self.ptr.add(k) }
+    }
+    #[inline]
+    fn add(&mut self, k: usize, x: f64) {
+        assert!(k < self.len);
+        // SAFETY: as in `get`.
+        unsafe { *self.ptr.add(k) += x }
+    }
+}
+
 /// `(ρ_i × n, ρ_i × t, ρ_j × n, ρ_j × t)`.
 pub(crate) type Levers = [f64; 4];
 
@@ -79,6 +146,49 @@ pub struct MatrixFree {
     /// Empty without rotation.
     pub(crate) levers: Vec<Levers>,
     pub(crate) dofs: Dofs,
+    /// Each body's contacts, built on first use (threaded products, colouring).
+    incidence: OnceLock<Incidence>,
+}
+
+/// The contacts of each body in increasing contact order, with the side the body is on: a
+/// body's velocity summed over this list adds the same terms in the same order as the
+/// sequential scatter, so threaded and sequential products agree to the bit.
+#[derive(Clone, Debug)]
+pub struct Incidence {
+    start: Vec<usize>,
+    /// `(contact, body is the antagonist j)`.
+    list: Vec<(usize, bool)>,
+}
+
+impl Incidence {
+    fn new(n_bodies: usize, rows: &[ContactRows]) -> Self {
+        let mut start = vec![0usize; n_bodies + 1];
+        for c in rows {
+            start[c.i + 1] += 1;
+            if c.j != NO_BODY {
+                start[c.j + 1] += 1;
+            }
+        }
+        for k in 0..n_bodies {
+            start[k + 1] += start[k];
+        }
+        let mut fill = start.clone();
+        let mut list = vec![(0, false); start[n_bodies]];
+        for (a, c) in rows.iter().enumerate() {
+            list[fill[c.i]] = (a, false);
+            fill[c.i] += 1;
+            if c.j != NO_BODY {
+                list[fill[c.j]] = (a, true);
+                fill[c.j] += 1;
+            }
+        }
+        Self { start, list }
+    }
+
+    /// Contacts touching body `k`, in increasing order.
+    pub fn contacts_of(&self, k: usize) -> impl Iterator<Item = usize> + '_ {
+        self.list[self.start[k]..self.start[k + 1]].iter().map(|&(a, _)| a)
+    }
 }
 
 fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -122,7 +232,7 @@ impl MatrixFree {
                 levers.push([cross(c.lever_i, n), cross(c.lever_i, t), cross(c.lever_j, n), cross(c.lever_j, t)]);
             }
         }
-        Ok(Self { bodies, rows, levers, dofs })
+        Ok(Self { bodies, rows, levers, dofs, incidence: OnceLock::new() })
     }
 
     pub fn n_contacts(&self) -> usize {
@@ -144,55 +254,114 @@ impl MatrixFree {
             + self.levers.capacity() * std::mem::size_of::<Levers>()
     }
 
-    /// `v += M⁻¹ B_aᵀ r_a` for one contact (velocities stored with [`Dofs::per_body`] entries per body).
+    /// The same operator with its contacts in `order` (contact `k` of the result is `order[k]`).
+    pub fn permuted(&self, order: &[usize]) -> Self {
+        Self {
+            bodies: self.bodies.clone(),
+            rows: order.iter().map(|&a| self.rows[a]).collect(),
+            levers: if self.dofs.rotation { order.iter().map(|&a| self.levers[a]).collect() } else { Vec::new() },
+            dofs: self.dofs,
+            incidence: OnceLock::new(),
+        }
+    }
+
+    /// Each body's contacts (built once).
+    pub fn incidence(&self) -> &Incidence {
+        self.incidence.get_or_init(|| Incidence::new(self.bodies.len(), &self.rows))
+    }
+
+    /// The bodies of contact `a` that can move (a contact between them and another one conflicts
+    /// in a Gauss–Seidel sweep).
+    pub fn moving_bodies_of(&self, a: usize) -> impl Iterator<Item = usize> + '_ {
+        let c = &self.rows[a];
+        [c.i, c.j].into_iter().filter(|&k| k != NO_BODY && self.bodies[k] != Body::fixed())
+    }
+
+    /// Body `k`'s velocity `(M⁻¹ Bᵀ r)_k`, summed over its contacts in contact order.
+    fn body_velocity_into(&self, k: usize, r: &[f64], v: &mut [f64]) {
+        v.fill(0.0);
+        let b = self.bodies[k];
+        if b == Body::fixed() {
+            return;
+        }
+        let inc = self.incidence();
+        for &(a, j_side) in &inc.list[inc.start[k]..inc.start[k + 1]] {
+            let (rn, rt) = (r[2 * a], r[2 * a + 1]);
+            let n = self.rows[a].n;
+            let p = if self.dofs.friction {
+                [rn * n[0] - rt * n[1], rn * n[1] + rt * n[0]]
+            } else {
+                [rn * n[0], rn * n[1]]
+            };
+            let sign = if j_side { -1.0 } else { 1.0 };
+            v[0] += sign * (b.inv_mass * p[0]);
+            v[1] += sign * (b.inv_mass * p[1]);
+            if self.dofs.rotation {
+                let g = &self.levers[a];
+                let torque = match (j_side, self.dofs.friction) {
+                    (false, true) => rn * g[0] + rt * g[1],
+                    (false, false) => rn * g[0],
+                    (true, true) => rn * g[2] + rt * g[3],
+                    (true, false) => rn * g[2],
+                };
+                v[2] += sign * (b.inv_inertia * torque);
+            }
+        }
+    }
+
+    /// `v += M⁻¹ B_aᵀ r_a` for one contact (velocities stored with [`Dofs::per_body`] entries per
+    /// body). Fixed bodies are never written: their velocity stays zero, and a threaded sweep
+    /// whose colouring ignores them never writes one place from two threads.
     #[inline]
-    pub(crate) fn scatter_one(&self, a: usize, rn: f64, rt: f64, v: &mut [f64]) {
+    pub(crate) fn scatter_one<V: Velocities + ?Sized>(&self, a: usize, rn: f64, rt: f64, v: &mut V) {
         let c = &self.rows[a];
         let n = c.n;
         let p =
             if self.dofs.friction { [rn * n[0] - rt * n[1], rn * n[1] + rt * n[0]] } else { [rn * n[0], rn * n[1]] };
         let s = self.dofs.per_body();
+        let g = if self.dofs.rotation { self.levers[a] } else { [0.0; 4] };
         let b = self.bodies[c.i];
-        v[s * c.i] += b.inv_mass * p[0];
-        v[s * c.i + 1] += b.inv_mass * p[1];
-        if self.dofs.rotation {
-            let g = &self.levers[a];
-            let torque_i = if self.dofs.friction { rn * g[0] + rt * g[1] } else { rn * g[0] };
-            v[s * c.i + 2] += b.inv_inertia * torque_i;
-            if c.j != NO_BODY {
-                let torque_j = if self.dofs.friction { rn * g[2] + rt * g[3] } else { rn * g[2] };
-                v[s * c.j + 2] -= self.bodies[c.j].inv_inertia * torque_j;
+        if b != Body::fixed() {
+            v.add(s * c.i, b.inv_mass * p[0]);
+            v.add(s * c.i + 1, b.inv_mass * p[1]);
+            if self.dofs.rotation {
+                let torque_i = if self.dofs.friction { rn * g[0] + rt * g[1] } else { rn * g[0] };
+                v.add(s * c.i + 2, b.inv_inertia * torque_i);
             }
         }
-        if c.j != NO_BODY {
+        if c.j != NO_BODY && self.bodies[c.j] != Body::fixed() {
             let b = self.bodies[c.j];
-            v[s * c.j] -= b.inv_mass * p[0];
-            v[s * c.j + 1] -= b.inv_mass * p[1];
+            if self.dofs.rotation {
+                let torque_j = if self.dofs.friction { rn * g[2] + rt * g[3] } else { rn * g[2] };
+                v.add(s * c.j + 2, -(b.inv_inertia * torque_j));
+            }
+            v.add(s * c.j, -(b.inv_mass * p[0]));
+            v.add(s * c.j + 1, -(b.inv_mass * p[1]));
         }
     }
 
     /// `B_a v`: the relative velocity (u_n, u_t) of contact `a` (u_t = 0 without friction).
     #[inline]
-    pub(crate) fn gather_one(&self, a: usize, v: &[f64]) -> [f64; 2] {
+    pub(crate) fn gather_one<V: Velocities + ?Sized>(&self, a: usize, v: &V) -> [f64; 2] {
         let c = &self.rows[a];
         let n = c.n;
         let s = self.dofs.per_body();
-        let mut dv = [v[s * c.i], v[s * c.i + 1]];
+        let mut dv = [v.get(s * c.i), v.get(s * c.i + 1)];
         if c.j != NO_BODY {
-            dv[0] -= v[s * c.j];
-            dv[1] -= v[s * c.j + 1];
+            dv[0] -= v.get(s * c.j);
+            dv[1] -= v.get(s * c.j + 1);
         }
         let mut un = n[0] * dv[0] + n[1] * dv[1];
         let mut ut = if self.dofs.friction { -n[1] * dv[0] + n[0] * dv[1] } else { 0.0 };
         if self.dofs.rotation {
             let g = &self.levers[a];
-            let wi = v[s * c.i + 2];
+            let wi = v.get(s * c.i + 2);
             un += g[0] * wi;
             if self.dofs.friction {
                 ut += g[1] * wi;
             }
             if c.j != NO_BODY {
-                let wj = v[s * c.j + 2];
+                let wj = v.get(s * c.j + 2);
                 un -= g[2] * wj;
                 if self.dofs.friction {
                     ut -= g[3] * wj;
@@ -202,21 +371,37 @@ impl MatrixFree {
         [un, ut]
     }
 
-    /// Body velocities `M⁻¹ Bᵀ r` ([`Dofs::per_body`] entries per body).
+    /// Body velocities `M⁻¹ Bᵀ r` ([`Dofs::per_body`] entries per body): on threads, each body
+    /// sums its own contacts (no two threads write one body); the same bits either way.
     pub fn body_velocities(&self, r: &[f64]) -> Vec<f64> {
-        let mut v = vec![0.0; self.dofs.per_body() * self.bodies.len()];
-        for a in 0..self.rows.len() {
-            self.scatter_one(a, r[2 * a], r[2 * a + 1], &mut v);
+        let s = self.dofs.per_body();
+        let mut v = vec![0.0; s * self.bodies.len()];
+        if parallel(self.rows.len()) {
+            v.par_chunks_mut(s * CHUNK).enumerate().for_each(|(chunk, vs)| {
+                for (k, vk) in vs.chunks_mut(s).enumerate() {
+                    self.body_velocity_into(chunk * CHUNK + k, r, vk);
+                }
+            });
+        } else {
+            for a in 0..self.rows.len() {
+                self.scatter_one(a, r[2 * a], r[2 * a + 1], v.as_mut_slice());
+            }
         }
         v
     }
 
-    /// `out = B v`.
+    /// `out = B v` (contacts on threads for large problems).
     pub fn contact_velocities(&self, v: &[f64], out: &mut [f64]) {
-        for a in 0..self.rows.len() {
-            let u = self.gather_one(a, v);
-            out[2 * a] = u[0];
-            out[2 * a + 1] = u[1];
+        let gather = |first: usize, out: &mut [f64]| {
+            for (k, o) in out.chunks_mut(2).enumerate() {
+                let u = self.gather_one(first + k, v);
+                o.copy_from_slice(&u);
+            }
+        };
+        if parallel(self.rows.len()) {
+            out.par_chunks_mut(2 * CHUNK).enumerate().for_each(|(c, o)| gather(c * CHUNK, o));
+        } else {
+            gather(0, out);
         }
     }
 

@@ -5,6 +5,7 @@
 //! explicit 2×2-block sparse matrix read from a file. Solvers only see the operator interface.
 
 pub mod block_sparse;
+pub mod colouring;
 pub mod cone;
 pub mod delassus;
 pub mod generate;

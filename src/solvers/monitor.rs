@@ -12,9 +12,10 @@
 use super::lmgc_criteria::LmgcMeasures;
 use super::stopping::{CheckCadence, StopReason};
 use super::{HistoryPoint, SolveReport, SolverKind, SolverOptions, StopCriterion};
+use crate::parallel::chunked_sum;
 use crate::problem::cone::project_box;
 use crate::problem::residual::{natural_map_error, velocity_error};
-use crate::problem::{norm, ContactProblem, Mat2};
+use crate::problem::{ContactProblem, Mat2};
 use std::time::{Duration, Instant};
 
 pub struct Monitor<'a> {
@@ -98,8 +99,14 @@ impl<'a> Monitor<'a> {
             return true;
         }
         let light = {
-            let d: f64 = r.iter().zip(&self.r_prev).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
-            let n = norm(r);
+            let nc = r.len() / 2;
+            let prev = &self.r_prev;
+            let d = chunked_sum(nc, |a| {
+                let (x, y) = (r[2 * a] - prev[2 * a], r[2 * a + 1] - prev[2 * a + 1]);
+                x * x + y * y
+            })
+            .sqrt();
+            let n = chunked_sum(nc, |a| r[2 * a] * r[2 * a] + r[2 * a + 1] * r[2 * a + 1]).sqrt();
             // Same rule as the error's normalisation: below machine epsilon, judge absolutely.
             if n > f64::EPSILON {
                 d / n

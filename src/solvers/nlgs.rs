@@ -3,36 +3,84 @@
 //! Each contact in turn gets the exact single-contact solve against the current impulses of all
 //! others. On the matrix-free form the body velocities `M⁻¹ Bᵀ r` are kept up to date, so a
 //! contact update costs O(1) and `W` is never formed.
+//!
+//! On several threads a forward sweep of a large matrix-free problem runs colour by colour
+//! ([`Colouring`]: the contacts of one colour share no moving body, so they are updated at once
+//! with exact Gauss–Seidel semantics, as the GPU does). The problem is first renumbered so each
+//! colour is one contiguous range (a sweep then streams through memory as the sequential one
+//! does). That is a sweep in colour order: the same bits for any thread count ≥ 2; one thread
+//! keeps the sequential reference sweep.
+
+use rayon::prelude::*;
 
 use super::monitor::Monitor;
 use super::{Ordering, SolveReport, SolverKind, SolverOptions};
+use crate::parallel::parallel;
+use crate::problem::colouring::Colouring;
 use crate::problem::cone::solve_single_contact;
-use crate::problem::ContactProblem;
+use crate::problem::matrix_free::{SharedSlice, Velocities};
+use crate::problem::{ContactProblem, Delassus, Mat2, MatrixFree};
 use rand::{rngs::SmallRng, seq::SliceRandom, SeedableRng};
 
-pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>) -> SolveReport {
+/// Contacts per task in a threaded colour.
+const MIN_TASK: usize = 256;
+
+pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveReport {
+    match &p.w {
+        Delassus::MatrixFree(op) if opts.ordering == Ordering::Forward && parallel(p.n_contacts()) => {
+            solve_coloured(p, op, opts, &r)
+        }
+        _ => solve_on(p, opts, r, None),
+    }
+}
+
+/// Renumbers the problem by colour, solves it colour by colour, and numbers the result back.
+fn solve_coloured(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, r: &[f64]) -> SolveReport {
+    let colouring = Colouring::of(&p.w);
+    let order: Vec<usize> = colouring.order.iter().map(|&a| a as usize).collect();
+    let pairs = |x: &[f64]| -> Vec<f64> { order.iter().flat_map(|&a| [x[2 * a], x[2 * a + 1]]).collect() };
+    let renumbered = ContactProblem {
+        w: Delassus::MatrixFree(op.permuted(&order)),
+        q: pairs(&p.q),
+        mu: order.iter().map(|&a| p.mu[a]).collect(),
+    };
+    let ranges: Vec<(usize, usize)> =
+        (0..colouring.n_colours()).map(|c| (colouring.start[c] as usize, colouring.start[c + 1] as usize)).collect();
+    let mut report = solve_on(&renumbered, opts, pairs(r), Some(&ranges));
+    let back = |x: &mut Vec<f64>| {
+        let mut y = vec![0.0; x.len()];
+        for (k, &a) in order.iter().enumerate() {
+            y[2 * a] = x[2 * k];
+            y[2 * a + 1] = x[2 * k + 1];
+        }
+        *x = y;
+    };
+    back(&mut report.r);
+    back(&mut report.u);
+    report.iterates.iter_mut().for_each(back);
+    report
+}
+
+/// Sweeps until the monitor stops: sequentially in `opts.ordering`, or colour range by colour
+/// range on threads when `colours` is given (the problem numbered by colour).
+fn solve_on(
+    p: &ContactProblem,
+    opts: &SolverOptions,
+    mut r: Vec<f64>,
+    colours: Option<&[(usize, usize)]>,
+) -> SolveReport {
     let mut monitor = Monitor::new(p, opts, SolverKind::Nlgs, &r);
     let nc = p.n_contacts();
     let diag = p.w.diag_blocks();
     let mut state = p.w.sweep_state(&r);
     let mut rng = SmallRng::seed_from_u64(opts.seed);
     let mut order: Vec<usize> = (0..nc).collect();
-    let omega = opts.omega;
+    let local = |a: usize, ra: [f64; 2], wr: [f64; 2]| local_solve(p, &diag[a], a, ra, wr, opts.omega);
 
     let update = |a: usize, r: &mut [f64], state: &mut _| {
         let wr = p.w.row(a, r, state);
-        let d = &diag[a];
         let ra = [r[2 * a], r[2 * a + 1]];
-        // Velocity of contact a with its own impulse removed.
-        let q_local = [
-            p.q[2 * a] + wr[0] - (d[0] * ra[0] + d[1] * ra[1]),
-            p.q[2 * a + 1] + wr[1] - (d[2] * ra[0] + d[3] * ra[1]),
-        ];
-        let (mut rn, _) = solve_single_contact(d, q_local, p.mu[a]);
-        if omega != 1.0 {
-            // A convex combination of two cone points stays in the cone.
-            rn = [omega * rn[0] + (1.0 - omega) * ra[0], omega * rn[1] + (1.0 - omega) * ra[1]];
-        }
+        let rn = local(a, ra, wr);
         let dr = [rn[0] - ra[0], rn[1] - ra[1]];
         if dr != [0.0, 0.0] {
             r[2 * a] = rn[0];
@@ -42,14 +90,17 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>) -> Solve
     };
 
     loop {
-        match opts.ordering {
-            Ordering::Forward => (0..nc).for_each(|a| update(a, &mut r, &mut state)),
-            Ordering::Backward => (0..nc).rev().for_each(|a| update(a, &mut r, &mut state)),
-            Ordering::Symmetric => {
+        match (colours, &p.w, opts.ordering) {
+            (Some(ranges), Delassus::MatrixFree(op), _) => {
+                coloured_sweep(op, ranges, &local, &mut r, state.body_velocity_mut())
+            }
+            (_, _, Ordering::Forward) => (0..nc).for_each(|a| update(a, &mut r, &mut state)),
+            (_, _, Ordering::Backward) => (0..nc).rev().for_each(|a| update(a, &mut r, &mut state)),
+            (_, _, Ordering::Symmetric) => {
                 (0..nc).for_each(|a| update(a, &mut r, &mut state));
                 (0..nc).rev().for_each(|a| update(a, &mut r, &mut state));
             }
-            Ordering::Shuffled => {
+            (_, _, Ordering::Shuffled) => {
                 order.shuffle(&mut rng);
                 order.iter().for_each(|&a| update(a, &mut r, &mut state));
             }
@@ -59,4 +110,45 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>) -> Solve
         }
     }
     monitor.finish(r)
+}
+
+/// The new impulse of contact `a` (now `ra`, with `wr = (W r)_a`): the exact single-contact
+/// solve against all others, relaxed by ω.
+#[inline]
+fn local_solve(p: &ContactProblem, d: &Mat2, a: usize, ra: [f64; 2], wr: [f64; 2], omega: f64) -> [f64; 2] {
+    // Velocity of contact a with its own impulse removed.
+    let q_local =
+        [p.q[2 * a] + wr[0] - (d[0] * ra[0] + d[1] * ra[1]), p.q[2 * a + 1] + wr[1] - (d[2] * ra[0] + d[3] * ra[1])];
+    let (rn, _) = solve_single_contact(d, q_local, p.mu[a]);
+    if omega != 1.0 {
+        // A convex combination of two cone points stays in the cone.
+        [omega * rn[0] + (1.0 - omega) * ra[0], omega * rn[1] + (1.0 - omega) * ra[1]]
+    } else {
+        rn
+    }
+}
+
+/// One sweep in colour order, each colour's contacts (a contiguous range) on threads.
+fn coloured_sweep(
+    op: &MatrixFree,
+    ranges: &[(usize, usize)],
+    local: &(impl Fn(usize, [f64; 2], [f64; 2]) -> [f64; 2] + Sync),
+    r: &mut [f64],
+    v: &mut [f64],
+) {
+    let (shared_r, shared_v) = (SharedSlice::new(r), SharedSlice::new(v));
+    for &(first, end) in ranges {
+        (first..end).into_par_iter().with_min_len(MIN_TASK).for_each(|a| {
+            let (mut r, mut v) = (shared_r, shared_v);
+            let wr = op.gather_one(a, &v);
+            let ra = [r.get(2 * a), r.get(2 * a + 1)];
+            let rn = local(a, ra, wr);
+            let dr = [rn[0] - ra[0], rn[1] - ra[1]];
+            if dr != [0.0, 0.0] {
+                r.set(2 * a, rn[0]);
+                r.set(2 * a + 1, rn[1]);
+                op.scatter_one(a, dr[0], dr[1], &mut v);
+            }
+        });
+    }
 }

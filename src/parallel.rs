@@ -1,0 +1,45 @@
+//! How the CPU path uses threads (rayon's pool: `--threads N`, all cores by default). Work is cut
+//! into fixed chunks whatever the thread count, and partial sums are added in chunk order, so
+//! every result is the same bits for any number of threads, run after run.
+
+use rayon::prelude::*;
+
+/// Contacts (or bodies) per task.
+pub const CHUNK: usize = 1024;
+
+/// Below this many contacts a loop stays on one thread: a task would cost more than its work.
+pub const PARALLEL_MIN: usize = 4096;
+
+/// Whether a loop over `n` items runs on threads.
+pub fn parallel(n: usize) -> bool {
+    n >= PARALLEL_MIN && rayon::current_num_threads() > 1
+}
+
+/// `Σ_{k<n} term(k)`, summed per chunk of [`CHUNK`] and then over chunks in order: the same bits
+/// on one thread or many.
+pub fn chunked_sum(n: usize, term: impl Fn(usize) -> f64 + Sync) -> f64 {
+    let chunk_sum = |c: usize| (c * CHUNK..((c + 1) * CHUNK).min(n)).map(&term).sum::<f64>();
+    let chunks = n.div_ceil(CHUNK);
+    if parallel(n) {
+        let partials: Vec<f64> = (0..chunks).into_par_iter().map(chunk_sum).collect();
+        partials.iter().sum()
+    } else {
+        (0..chunks).map(chunk_sum).sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chunked_sums_are_the_same_bits_on_one_thread_and_on_four() {
+        let term = |k: usize| ((k as f64) * 0.731).sin() * 1e-3 + 1.0 / (k as f64 + 1.0);
+        let n = 3 * PARALLEL_MIN + 17;
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| chunked_sum(n, term));
+        let four = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap().install(|| chunked_sum(n, term));
+        assert_eq!(one.to_bits(), four.to_bits());
+        let plain: f64 = (0..n).map(term).sum();
+        assert!((one - plain).abs() <= 1e-12 * plain.abs(), "{one} vs {plain}");
+    }
+}

@@ -1,0 +1,113 @@
+//! Greedy colouring of the contact graph: two contacts conflict when they share a moving body
+//! (matrix-free `W`) or have a nonzero block between them (explicit `W`). Contacts of one colour
+//! can be updated at once with exact Gauss–Seidel semantics — by CPU threads
+//! ([`crate::solvers::nlgs`]) or by a GPU dispatch per colour (`gpu/nlgs.rs`).
+
+use super::Delassus;
+
+/// Contacts ordered by colour, and where each colour starts in that order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Colouring {
+    pub order: Vec<u32>,
+    /// `order[start[c]..start[c + 1]]` are the contacts of colour `c`.
+    pub start: Vec<u32>,
+}
+
+impl Colouring {
+    pub fn n_colours(&self) -> usize {
+        self.start.len() - 1
+    }
+
+    pub fn colour(&self, c: usize) -> &[u32] {
+        &self.order[self.start[c] as usize..self.start[c + 1] as usize]
+    }
+
+    /// Greedy: each contact in index order takes the smallest colour none of its neighbours has.
+    pub fn from_neighbours(n: usize, neighbours: impl Fn(usize, &mut Vec<usize>)) -> Self {
+        let mut colour = vec![usize::MAX; n];
+        let mut used = Vec::new();
+        let mut list = Vec::new();
+        for a in 0..n {
+            list.clear();
+            neighbours(a, &mut list);
+            used.clear();
+            used.extend(list.iter().map(|&b| colour[b]).filter(|&c| c != usize::MAX));
+            used.sort_unstable();
+            used.dedup();
+            let mut c = 0;
+            for &u in &used {
+                if u == c {
+                    c += 1;
+                } else if u > c {
+                    break;
+                }
+            }
+            colour[a] = c;
+        }
+        let n_colours = colour.iter().map(|&c| c + 1).max().unwrap_or(0);
+        let mut start = vec![0u32; n_colours + 1];
+        for &c in &colour {
+            start[c + 1] += 1;
+        }
+        for c in 0..n_colours {
+            start[c + 1] += start[c];
+        }
+        let mut fill = start.clone();
+        let mut order = vec![0u32; n];
+        for (a, &c) in colour.iter().enumerate() {
+            order[fill[c] as usize] = a as u32;
+            fill[c] += 1;
+        }
+        Self { order, start }
+    }
+
+    /// True when no two contacts of a colour are neighbours.
+    pub fn is_proper(&self, neighbours: impl Fn(usize, &mut Vec<usize>)) -> bool {
+        let mut colour = vec![0usize; self.order.len()];
+        for c in 0..self.n_colours() {
+            for &a in self.colour(c) {
+                colour[a as usize] = c;
+            }
+        }
+        let mut list = Vec::new();
+        (0..self.order.len()).all(|a| {
+            list.clear();
+            neighbours(a, &mut list);
+            list.iter().all(|&b| b == a || colour[b] != colour[a])
+        })
+    }
+
+    /// The colouring of an operator's contact graph.
+    pub fn of(w: &Delassus) -> Self {
+        match w {
+            Delassus::MatrixFree(m) => {
+                let incidence = m.incidence();
+                Self::from_neighbours(m.n_contacts(), |a, out| {
+                    for k in m.moving_bodies_of(a) {
+                        out.extend(incidence.contacts_of(k).filter(|&b| b != a));
+                    }
+                })
+            }
+            Delassus::Sparse(s) => {
+                let adjacency = s.adjacency();
+                Self::from_neighbours(adjacency.len(), |a, out| out.extend_from_slice(&adjacency[a]))
+            }
+        }
+    }
+
+    /// The neighbours of contact `a` in `w`'s contact graph (for checking a colouring).
+    pub fn neighbours_in(w: &Delassus) -> impl Fn(usize, &mut Vec<usize>) + '_ {
+        let adjacency = match w {
+            Delassus::Sparse(s) => s.adjacency(),
+            Delassus::MatrixFree(_) => Vec::new(),
+        };
+        move |a, out| match w {
+            Delassus::MatrixFree(m) => {
+                for k in m.moving_bodies_of(a) {
+                    out.extend(m.incidence().contacts_of(k).filter(|&b| b != a));
+                }
+            }
+            Delassus::Sparse(_) => out.extend_from_slice(&adjacency[a]),
+        }
+    }
+}
