@@ -9,7 +9,9 @@
 @group(0) @binding(5) var<storage, read_write> u: array<vec2<f32>>;
 
 @compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    // Past 65,535 workgroups the dispatch is a 2D grid of rows (kernels.rs `dispatch`).
+    let gid = vec3<u32>(grid.x + grid.y * groups.x * 64u, 0u, 0u);
     let a = gid.x;
     if (a >= arrayLength(&q)) {
         return;

@@ -40,7 +40,9 @@ fn scatter(k: u32, s: f32, f: vec2<f32>, torque: f32) {
 }
 
 @compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    // Past 65,535 workgroups the dispatch is a 2D grid of rows (kernels.rs `dispatch`).
+    let gid = vec3<u32>(grid.x + grid.y * groups.x * 64u, 0u, 0u);
     if (gid.x >= range.count) {
         return;
     }

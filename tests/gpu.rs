@@ -504,3 +504,23 @@ fn reductions_cpg_and_apgd_stages_match_their_mirrors() {
         assert_close(&floats(&out[0]), &s_cpu, &format!("cpg_scalars stage {stage}"));
     }
 }
+
+/// Past 65,535 workgroups (4,194,240 contacts) a dispatch is a 2D grid; every contact is still
+/// updated once, as the mirror does.
+#[test]
+fn a_dispatch_past_the_workgroup_limit_covers_every_contact() {
+    assert_eq!(moreau::gpu::kernels::grid(65_535), [65_535, 1]);
+    let [x, y] = moreau::gpu::kernels::grid(65_536);
+    assert!(x <= 65_535 && x * y >= 65_536 && y == 2);
+    let Some(ctx) = context() else { return };
+    let nc = 65_535 * 64 + 1000;
+    let u: Vec<[f32; 2]> = (0..nc).map(|a| [((a % 7) as f32) - 3.0, ((a % 5) as f32) - 2.0]).collect();
+    let mu = vec![0.5f32; nc];
+    let step = vec![0.25f32; nc];
+    let r = vec![[0.0f32; 2]; nc];
+    let gpu_r = stages::jacobi_update(&ctx, &u, &mu, &step, &r).unwrap();
+    let mut cpu_r = r.clone();
+    cpu::jacobi_update::jacobi_update(&u, &mu, &step, &mut cpu_r);
+    assert_close(gpu_r.as_flattened(), cpu_r.as_flattened(), "jacobi_update on a 2D grid");
+    assert!(gpu_r[nc - 1] != [0.0, 0.0] || cpu_r[nc - 1] == [0.0, 0.0], "the last contact was updated");
+}

@@ -11,6 +11,7 @@ use std::time::Instant;
 
 use thiserror::Error;
 
+use crate::gpu::traffic::Traffic;
 use crate::gpu::{GpuContext, GpuError};
 use crate::problem::ContactProblem;
 use crate::solvers::{
@@ -163,7 +164,7 @@ impl Backend {
     /// One line for the user: the device and why it was chosen.
     pub fn describe(&self) -> String {
         match &self.device {
-            Device::Cpu => format!("cpu, {} thread(s) ({})", rayon::current_num_threads(), self.reason),
+            Device::Cpu => format!("cpu ({}) — {} thread(s)", self.reason, rayon::current_num_threads()),
             Device::Gpu(ctx) => format!("gpu — {} ({})", ctx.describe(), self.reason),
         }
     }
@@ -188,7 +189,12 @@ impl Backend {
             Device::Cpu => Ok(solvers::solve(problem, kind, opts, r0)),
             Device::Gpu(ctx) => {
                 self.check(kind, opts)?;
-                solve_mixed(ctx, problem, kind, opts, r0)
+                let before = Traffic::now();
+                let mut report = solve_mixed(ctx, problem, kind, opts, r0)?;
+                let traffic = Traffic::since(before);
+                report.gpu_dispatches = traffic.dispatches;
+                report.gpu_bytes = traffic.bytes_up + traffic.bytes_down;
+                Ok(report)
             }
         }
     }
@@ -240,6 +246,8 @@ fn solve_mixed(
         stop: cpu.stop,
         stop_reason: format!("gpu (f32): {}; cpu (f64): {}", gpu.stop_reason, cpu.stop_reason),
         parts,
+        gpu_dispatches: 0,
+        gpu_bytes: 0,
         r: cpu.r,
         u: cpu.u,
         iterates: Vec::new(),

@@ -107,9 +107,10 @@ pub fn run_command(a: RunArgs) -> Result<()> {
     let mut summary = RunSummary {
         scene: scene.name.clone(),
         device: match backend.adapter_name() {
-            None => format!("cpu ({} threads)", rayon::current_num_threads()),
+            None => "cpu".into(),
             Some(adapter) => format!("gpu ({adapter})"),
         },
+        threads: rayon::current_num_threads(),
         solver: scene.settings.solver.name().to_string(),
         tol: scene.settings.options.tol,
         effects: scene.world.effects.names().iter().map(|s| s.to_string()).collect(),
@@ -175,6 +176,7 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         }
     }
     bar.finish_and_clear();
+    summary.close();
     summary.max_penetration_per_diameter = if diameter > 0.0 { summary.max_penetration / diameter } else { 0.0 };
     println!("{}", summary.line());
     if summary.unconverged_steps > 0 {

@@ -139,6 +139,8 @@ pub fn iterate(
         },
         stop_reason,
         parts: Vec::new(),
+        gpu_dispatches: 0,
+        gpu_bytes: 0,
         r,
         u,
         iterates: Vec::new(),

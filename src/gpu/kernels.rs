@@ -4,6 +4,7 @@
 use wgpu::util::DeviceExt;
 
 use super::context::GpuContext;
+use super::traffic;
 
 pub const WORKGROUP: u32 = 64;
 
@@ -107,6 +108,7 @@ pub fn storage<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, data: &[T]) -> w
     } else {
         bytes
     };
+    traffic::uploaded(contents.len());
     ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(label),
         contents,
@@ -147,11 +149,28 @@ pub fn dispatch(
 ) {
     pass.set_pipeline(pipeline);
     pass.set_bind_group(0, group, &[]);
-    pass.dispatch_workgroups(workgroups, 1, 1);
+    let [x, y] = grid(workgroups);
+    pass.dispatch_workgroups(x, y, 1);
+    traffic::dispatched();
+}
+
+/// The most workgroups a dispatch may have along one dimension (WebGPU's default limit).
+pub const MAX_GROUPS_PER_DIMENSION: u32 = 65_535;
+
+/// `workgroups` as a grid `[x, y]` within the per-dimension limit: one row when it fits, else
+/// rows of equal width (the element-wise kernels number their items `x + y · width · 64`; the
+/// few extra groups of the last row find their index past the end and return).
+pub fn grid(workgroups: u32) -> [u32; 2] {
+    if workgroups <= MAX_GROUPS_PER_DIMENSION {
+        return [workgroups, 1];
+    }
+    let rows = workgroups.div_ceil(MAX_GROUPS_PER_DIMENSION);
+    [workgroups.div_ceil(rows), rows]
 }
 
 /// A small uniform buffer (colour ranges).
 pub fn uniform<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, data: &[T]) -> wgpu::Buffer {
+    traffic::uploaded(std::mem::size_of_val(data));
     ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(label),
         contents: bytemuck::cast_slice(data),
@@ -175,6 +194,7 @@ pub fn read_back<T: bytemuck::Pod>(ctx: &GpuContext, buffer: &wgpu::Buffer, coun
     });
     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
     encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
+    traffic::downloaded(size as usize);
     ctx.queue.submit([encoder.finish()]);
     let slice = staging.slice(..);
     let (tx, rx) = std::sync::mpsc::channel();

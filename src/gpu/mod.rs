@@ -16,6 +16,7 @@ pub mod operator;
 pub mod reduce;
 pub mod stages;
 pub mod timing;
+pub mod traffic;
 
 pub use context::{GpuContext, GpuError};
 

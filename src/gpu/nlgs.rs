@@ -81,10 +81,8 @@ pub fn solve(
         }
     };
     iterate(ctx, p, &gp, opts, SolverKind::Nlgs, start, r, &r_buf, 1, |pass| {
-        pass.set_pipeline(pipeline);
         for (group, count) in &groups_per_colour {
-            pass.set_bind_group(0, group, &[]);
-            pass.dispatch_workgroups(groups(*count as usize), 1, 1);
+            dispatch(pass, pipeline, group, groups(*count as usize));
         }
     })
 }

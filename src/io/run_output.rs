@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use serde::Serialize;
 
+use crate::solvers::StopReason;
 use crate::stepping::{Simulation, StepReport};
 
 /// One row of `steps.csv`.
@@ -19,6 +20,9 @@ struct Row {
     iterations: usize,
     error: f64,
     converged: bool,
+    stop: &'static str,
+    gpu_dispatches: u64,
+    gpu_bytes: u64,
     max_penetration: f64,
     kinetic_energy: f64,
     potential_energy: f64,
@@ -32,6 +36,8 @@ struct Row {
 pub struct RunSummary {
     pub scene: String,
     pub device: String,
+    /// CPU threads of the run (detection, and solves on the CPU).
+    pub threads: usize,
     pub solver: String,
     pub tol: f64,
     pub effects: Vec<String>,
@@ -44,8 +50,16 @@ pub struct RunSummary {
     pub converged_steps: usize,
     pub unconverged_steps: usize,
     pub max_error: f64,
+    /// Iterations (NLGS: sweeps) per step: mean, median, 95th percentile, largest.
     pub mean_iterations: f64,
+    pub median_iterations: usize,
+    pub p95_iterations: usize,
     pub max_iterations: usize,
+    /// Steps whose solve ran to max_iter.
+    pub max_iter_steps: usize,
+    /// Every step's iterations, for the percentiles.
+    #[serde(skip)]
+    pub iterations: Vec<usize>,
     pub mean_contacts: f64,
     pub last_contacts: usize,
     /// Largest overlap over the run, absolute and relative to the mean grain diameter.
@@ -69,6 +83,10 @@ impl RunSummary {
         self.max_error = self.max_error.max(r.error);
         self.mean_iterations += (r.iterations as f64 - self.mean_iterations) / self.steps as f64;
         self.max_iterations = self.max_iterations.max(r.iterations);
+        self.iterations.push(r.iterations);
+        if r.stop == StopReason::MaxIter {
+            self.max_iter_steps += 1;
+        }
         self.mean_contacts += (r.contacts as f64 - self.mean_contacts) / self.steps as f64;
         self.last_contacts = r.contacts;
         self.max_penetration = self.max_penetration.max(r.max_penetration);
@@ -77,23 +95,38 @@ impl RunSummary {
         self.steps_per_second = self.steps as f64 / self.seconds.max(1e-12);
     }
 
+    /// Sets the percentiles of the iterations per step (once the run is over).
+    pub fn close(&mut self) {
+        let mut sorted = self.iterations.clone();
+        sorted.sort_unstable();
+        let rank = |f: f64| match sorted.len() {
+            0 => 0,
+            n => sorted[((f * n as f64).ceil() as usize).clamp(1, n) - 1],
+        };
+        (self.median_iterations, self.p95_iterations) = (rank(0.5), rank(0.95));
+    }
+
     /// One line for the end of a run.
     pub fn line(&self) -> String {
         format!(
-            "{}: {} steps in {:.3} s ({:.1} steps/s; solve {:.0} %), device {}, {} tol {:.0e}: {}/{} steps converged (max error {:.2e}), iterations mean {:.1} max {}, contacts mean {:.0}, max penetration {:.2e} of the mean diameter, final kinetic energy {:.3e}",
+            "{}: {} steps in {:.3} s ({:.1} steps/s; solve {:.0} %), device {} ({} threads), {} tol {:.0e}: {}/{} steps converged (max error {:.2e}), iterations mean {:.1} median {} p95 {} max {} ({} at max_iter), contacts mean {:.0}, max penetration {:.2e} of the mean diameter, final kinetic energy {:.3e}",
             self.scene,
             self.steps,
             self.seconds,
             self.steps_per_second,
             100.0 * self.solve_seconds / self.seconds.max(1e-12),
             self.device,
+            self.threads,
             self.solver,
             self.tol,
             self.converged_steps,
             self.steps,
             self.max_error,
             self.mean_iterations,
+            self.median_iterations,
+            self.p95_iterations,
             self.max_iterations,
+            self.max_iter_steps,
             self.mean_contacts,
             self.max_penetration_per_diameter,
             self.final_kinetic_energy
@@ -126,6 +159,9 @@ impl RunOutput {
             iterations: r.iterations,
             error: r.error,
             converged: r.converged,
+            stop: r.stop.name(),
+            gpu_dispatches: r.gpu_dispatches,
+            gpu_bytes: r.gpu_bytes,
             max_penetration: r.max_penetration,
             kinetic_energy: r.kinetic_energy,
             potential_energy: r.potential_energy,

@@ -88,8 +88,9 @@ impl ContactProblem {
     }
 }
 
+/// `a · b` in fixed chunks ([`crate::parallel::chunked_sum`]): the same bits on any thread count.
 pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+    crate::parallel::chunked_sum(a.len().min(b.len()), |k| a[k] * b[k])
 }
 
 pub(crate) fn norm(a: &[f64]) -> f64 {

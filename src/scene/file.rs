@@ -8,6 +8,7 @@ use glam::DVec2;
 use serde::Deserialize;
 use toml::Spanned;
 
+use super::grains_csv;
 use super::{deposition, from_toml, generate, Ctx, OutputSettings, Scene, SceneError};
 use crate::solvers::{Ordering, SolverKind, SolverOptions, StopCriterion};
 use crate::stepping::StepSettings;
@@ -46,6 +47,16 @@ struct SceneFile {
     body: Vec<Spanned<BodyFileSpec>>,
     #[serde(default)]
     generate: Vec<Spanned<GenerateSpec>>,
+    #[serde(default)]
+    grains: Vec<Spanned<GrainsFileSpec>>,
+}
+
+/// Disks read from a CSV file (`grains_csv.rs`), path relative to the scene file.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GrainsFileSpec {
+    file: String,
+    material: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -583,8 +594,28 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
             smallest_radius = smallest_radius.min(*r);
         }
     }
+    for (k, g) in file.grains.iter().enumerate() {
+        let spec = g.get_ref();
+        let field = |f: &str| format!("grains[{k}].{f}");
+        let material = material_index(&spec.material, g.span(), field("material"))?;
+        let path = origin.parent().unwrap_or(Path::new(".")).join(&spec.file);
+        let rows = grains_csv::read_grains(&path, MAX_GENERATED).or_else(|m| cx.err(g.span(), field("file"), m))?;
+        let density = world.materials.density[material];
+        for (n, row) in rows.iter().enumerate() {
+            let mut body = BodySpec::disk(row.center, row.radius, material);
+            (body.velocity, body.spin, body.tag) = (row.velocity, row.spin, row.tag);
+            world
+                .bodies
+                .add(&body, density)
+                .or_else(|m| cx.err(g.span(), field("file"), format!("{}: grain {}: {m}", path.display(), n + 1)))?;
+            smallest_radius = smallest_radius.min(row.radius);
+        }
+        if rows.iter().any(|r| r.spin != 0.0) && !effects.rotation {
+            warnings.push(format!("grains[{k}] have spins but the effect `rotation` is not named: they are ignored"));
+        }
+    }
     if world.bodies.is_empty() {
-        return cx.err(0..0, "body", "the scene has no bodies (add [[body]] or [[generate]])");
+        return cx.err(0..0, "body", "the scene has no bodies (add [[body]], [[generate]] or [[grains]])");
     }
 
     // Time, solver, detection, output.

@@ -5,6 +5,7 @@
 pub mod deposition;
 pub mod file;
 pub mod generate;
+pub mod grains_csv;
 pub mod punch_file;
 
 use std::path::{Path, PathBuf};

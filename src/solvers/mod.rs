@@ -159,6 +159,9 @@ pub struct SolveReport {
     /// A solve split across devices (mixed precision: f32 on the GPU, then f64 on the CPU) lists
     /// each part here; empty for a solve on one device.
     pub parts: Vec<SolvePart>,
+    /// GPU dispatches recorded and bytes moved between CPU and GPU by this solve (0 on the CPU).
+    pub gpu_dispatches: u64,
+    pub gpu_bytes: u64,
     pub r: Vec<f64>,
     pub u: Vec<f64>,
     /// The iterates at the history points, when `keep_iterates` was asked for.

@@ -242,6 +242,8 @@ impl<'a> Monitor<'a> {
             stop,
             stop_reason: detail,
             parts: Vec::new(),
+            gpu_dispatches: 0,
+            gpu_bytes: 0,
             r,
             u,
             iterates: self.iterates,

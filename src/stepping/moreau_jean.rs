@@ -159,7 +159,10 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
         iterations: 0,
         error: 0.0,
         converged: true,
+        stop: crate::solvers::StopReason::Converged,
         stop_reason: "no contact".into(),
+        gpu_dispatches: 0,
+        gpu_bytes: 0,
         max_penetration: 0.0,
         kinetic_energy: 0.0,
         potential_energy: 0.0,
@@ -236,6 +239,8 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
         report.iterations = solved.iterations;
         report.error = solved.error;
         report.converged = solved.converged;
+        report.stop = solved.stop;
+        (report.gpu_dispatches, report.gpu_bytes) = (solved.gpu_dispatches, solved.gpu_bytes);
         report.stop_reason = solved.stop_reason.clone();
         let mut r = solved.r;
         if r.iter().any(|x| !x.is_finite()) {

@@ -10,7 +10,7 @@ use crate::backend::Backend;
 use crate::detection::{DetectedContact, Detector};
 use crate::problem::cone::ContactStatus;
 use crate::problem::ContactProblem;
-use crate::solvers::{SolverKind, SolverOptions};
+use crate::solvers::{SolverKind, SolverOptions, StopReason};
 use crate::world::{BodySpec, Wall, World};
 
 /// Time step, θ, alert distance and the solver of each step.
@@ -66,7 +66,12 @@ pub struct StepReport {
     pub iterations: usize,
     pub error: f64,
     pub converged: bool,
+    /// Why the step's solve stopped (`converged` when there was nothing to solve).
+    pub stop: StopReason,
     pub stop_reason: String,
+    /// GPU dispatches and bytes moved CPU ↔ GPU by the step's solve (0 on the CPU).
+    pub gpu_dispatches: u64,
+    pub gpu_bytes: u64,
     /// Largest overlap at the detection configuration (absolute length).
     pub max_penetration: f64,
     pub kinetic_energy: f64,

@@ -1,0 +1,213 @@
+//! moreau and rapier2d side by side on the same pile (README "What accuracy costs in time"):
+//! both start from the same deposited disks, settle for a few steps, then step on while we time
+//! each step and measure, after it and outside the timer, the overlaps of the grains (moreau's
+//! exact detection on each engine's positions, relative to the mean diameter).
+//!
+//! `cargo bench --bench peers` (scene `scenes/pile_10k.toml`; MOREAU_PEERS_SCENE, _WARMUP,
+//! _STEPS and _THREADS change it). Writes target/peers/peers.csv and peers.svg/.png (largest
+//! overlap against milliseconds per step, one curve per engine). rapier2d is built without its
+//! `parallel` feature, so it runs on one thread; moreau's rows say their thread count.
+
+#[path = "peers/scene.rs"]
+mod scene;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use moreau::io::plots::{write_chart, Chart, Series};
+use moreau::solvers::SolverOptions;
+use moreau::stepping::Simulation;
+use scene::{kinetic_energy, penetration, rapier_pile};
+
+struct Row {
+    engine: &'static str,
+    setting: String,
+    threads: usize,
+    ms_per_step: f64,
+    mean_penetration: f64,
+    max_penetration: f64,
+    kinetic_energy: f64,
+    contacts: usize,
+    note: String,
+}
+
+fn env(name: &str, default: usize) -> usize {
+    std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)
+}
+
+/// Steps `step` for `warmup` steps, then times `steps` more; after each timed step the overlaps
+/// at `state()` are measured. Returns (ms per step, mean and max overlap, contacts, KE).
+fn measure(
+    world: &moreau::world::World,
+    warmup: usize,
+    steps: usize,
+    mut step: impl FnMut() -> f64,
+    state: impl Fn() -> (Vec<glam::DVec2>, Vec<glam::DVec2>),
+) -> (f64, f64, f64, usize, f64) {
+    for _ in 0..warmup {
+        step();
+    }
+    let (mut seconds, mut mean, mut max, mut contacts) = (0.0, 0.0f64, 0.0f64, 0);
+    for _ in 0..steps {
+        seconds += step();
+        let (p, _) = state();
+        let (m, x, n) = penetration(world, &p);
+        (mean, max, contacts) = (mean.max(m), max.max(x), n);
+    }
+    let (_, v) = state();
+    (1e3 * seconds / steps as f64, mean, max, contacts, kinetic_energy(world, &v))
+}
+
+fn main() {
+    let path = PathBuf::from(std::env::var("MOREAU_PEERS_SCENE").unwrap_or_else(|_| "scenes/pile_10k.toml".into()));
+    let (warmup, steps) = (env("MOREAU_PEERS_WARMUP", 20), env("MOREAU_PEERS_STEPS", 20));
+    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let threads = env("MOREAU_PEERS_THREADS", cores);
+    let load = || moreau::scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let first = load();
+    let h = first.settings.h;
+    eprintln!("{}: {} disks, h = {h:e}; {warmup} steps to settle, {steps} timed", first.name, first.world.bodies.len());
+    let mut rows = Vec::new();
+
+    for iterations in [4usize, 8, 16] {
+        let mut pile = rapier_pile(&first.world, h, iterations).unwrap_or_else(|e| panic!("{e}"));
+        let pile = std::cell::RefCell::new(&mut pile);
+        let (ms, mean, max, contacts, ke) = measure(
+            &first.world,
+            warmup,
+            steps,
+            || {
+                let t = Instant::now();
+                pile.borrow_mut().world.step();
+                t.elapsed().as_secs_f64()
+            },
+            || pile.borrow().state(),
+        );
+        eprintln!("rapier2d {iterations} iterations: {ms:.1} ms/step, max overlap {max:.3e} d");
+        rows.push(Row {
+            engine: "rapier2d",
+            setting: format!("{iterations} iterations"),
+            threads: 1,
+            ms_per_step: ms,
+            mean_penetration: mean,
+            max_penetration: max,
+            kinetic_energy: ke,
+            contacts,
+            note: String::new(),
+        });
+    }
+
+    let tolerances = [1e-2, 1e-3, 1e-4].map(|t| (format!("tol {t:.0e}"), Some(t), None));
+    let sweeps = [4usize, 8, 16].map(|k| (format!("{k} sweeps"), None, Some(k)));
+    let mut thread_counts = vec![1, threads];
+    thread_counts.dedup();
+    for &t in &thread_counts {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().expect("a thread pool");
+        for (setting, tol, fixed) in tolerances.iter().chain(&sweeps) {
+            let mut s = load();
+            let base = s.settings.options.clone();
+            s.settings.options = match (tol, fixed) {
+                (Some(tol), _) => SolverOptions { tol: *tol, ..base },
+                // A fixed sweep count: a tolerance no sweep reaches.
+                (_, Some(k)) => SolverOptions { tol: 1e-300, max_iter: *k, ..base },
+                _ => unreachable!(),
+            };
+            let world = s.world.clone();
+            let ((ms, mean, max, contacts, ke), unconverged) = pool.install(|| {
+                let sim = std::cell::RefCell::new(Simulation::new(s.world, s.settings).expect("a valid scene"));
+                let unconverged = std::cell::Cell::new(0usize);
+                let measured = measure(
+                    &world,
+                    warmup,
+                    steps,
+                    || {
+                        let r = sim.borrow_mut().step().unwrap_or_else(|e| panic!("{e}"));
+                        if !r.converged && tol.is_some() {
+                            unconverged.set(unconverged.get() + 1);
+                        }
+                        r.seconds
+                    },
+                    || {
+                        let sim = sim.borrow();
+                        (sim.world.bodies.position.clone(), sim.world.bodies.velocity.clone())
+                    },
+                );
+                (measured, unconverged.get())
+            });
+            let note = if unconverged > 0 { format!("{unconverged} steps missed tol") } else { String::new() };
+            eprintln!("moreau {setting} ({t} threads): {ms:.1} ms/step, max overlap {max:.3e} d {note}");
+            rows.push(Row {
+                engine: "moreau",
+                setting: setting.clone(),
+                threads: t,
+                ms_per_step: ms,
+                mean_penetration: mean,
+                max_penetration: max,
+                kinetic_energy: ke,
+                contacts,
+                note,
+            });
+        }
+    }
+    report(&rows, &first.name, first.world.bodies.len());
+}
+
+fn report(rows: &[Row], scene: &str, bodies: usize) {
+    println!("{scene} ({bodies} disks): per configuration, overlaps relative to the mean diameter");
+    println!("| engine | setting | threads | ms/step | mean overlap | max overlap | kinetic energy (J) | overlapping contacts | |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for r in rows {
+        println!(
+            "| {} | {} | {} | {:.1} | {:.2e} | {:.2e} | {:.3e} | {} | {} |",
+            r.engine,
+            r.setting,
+            r.threads,
+            r.ms_per_step,
+            r.mean_penetration,
+            r.max_penetration,
+            r.kinetic_energy,
+            r.contacts,
+            r.note
+        );
+    }
+    let dir = Path::new("target/peers");
+    std::fs::create_dir_all(dir).expect("target/peers");
+    let mut csv = String::from(
+        "engine,setting,threads,ms_per_step,mean_penetration,max_penetration,kinetic_energy,overlapping_contacts\n",
+    );
+    for r in rows {
+        csv.push_str(&format!(
+            "{},{},{},{},{},{},{},{}\n",
+            r.engine,
+            r.setting,
+            r.threads,
+            r.ms_per_step,
+            r.mean_penetration,
+            r.max_penetration,
+            r.kinetic_energy,
+            r.contacts
+        ));
+    }
+    std::fs::write(dir.join("peers.csv"), csv).expect("peers.csv");
+    let mut series: Vec<Series> = Vec::new();
+    for (engine, threads) in rows.iter().map(|r| (r.engine, r.threads)).collect::<std::collections::BTreeSet<_>>() {
+        let points: Vec<(f64, f64)> = rows
+            .iter()
+            .filter(|r| r.engine == engine && r.threads == threads && r.max_penetration > 0.0)
+            .map(|r| (r.ms_per_step, r.max_penetration))
+            .collect();
+        series.push((format!("{engine}, {threads} thread(s)"), points));
+    }
+    let chart = Chart {
+        title: &format!("{scene}: largest overlap vs time per step"),
+        x_label: "ms per step",
+        y_label: "largest overlap / mean diameter",
+        log_x: true,
+        log_y: true,
+        series: &series,
+    };
+    match write_chart(&dir.join("peers"), &chart) {
+        Ok(()) => eprintln!("wrote target/peers/peers.csv, peers.svg, peers.png"),
+        Err(e) => eprintln!("wrote target/peers/peers.csv; no chart: {e}"),
+    }
+}

@@ -1,0 +1,134 @@
+//! Grains read from a CSV file, as packings made by other codes are handed over: a header row
+//! naming the columns (`x, y, r` required; `vx, vy, spin, tag` optional; any order), one grain a
+//! row, `#` lines ignored. Errors name the line and the column.
+
+use std::path::Path;
+
+use glam::DVec2;
+
+/// One grain of the file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GrainRow {
+    pub center: DVec2,
+    pub radius: f64,
+    pub velocity: DVec2,
+    pub spin: f64,
+    pub tag: u32,
+}
+
+const COLUMNS: [&str; 7] = ["x", "y", "r", "vx", "vy", "spin", "tag"];
+
+/// Reads at most `max_rows` grains from `path`.
+pub fn read_grains(path: &Path, max_rows: usize) -> Result<Vec<GrainRow>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    parse_grains(&text, max_rows).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Parses the text of a grains file (see the module doc).
+pub fn parse_grains(text: &str, max_rows: usize) -> Result<Vec<GrainRow>, String> {
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .from_reader(text.as_bytes());
+    let mut records = reader.records();
+    let header = match records.next() {
+        Some(h) => h.map_err(|e| format!("header: {e}"))?,
+        None => return Err("no header row (columns x, y, r and optionally vx, vy, spin, tag)".into()),
+    };
+    let line_of = |r: &csv::StringRecord| r.position().map(|p| p.line()).unwrap_or(0);
+    // Where each known column is.
+    let mut at = [None; COLUMNS.len()];
+    for (c, name) in header.iter().enumerate() {
+        let k = COLUMNS.iter().position(|n| n.eq_ignore_ascii_case(name)).ok_or_else(|| {
+            format!(
+                "line {}, column {}: unknown column {name:?} (known: {})",
+                line_of(&header),
+                c + 1,
+                COLUMNS.join(", ")
+            )
+        })?;
+        if at[k].is_some() {
+            return Err(format!("line {}, column {}: column {name:?} appears twice", line_of(&header), c + 1));
+        }
+        at[k] = Some(c);
+    }
+    for k in 0..3 {
+        if at[k].is_none() {
+            return Err(format!("line {}: the header has no column {:?}", line_of(&header), COLUMNS[k]));
+        }
+    }
+    let mut grains = Vec::new();
+    for record in records {
+        let record = record.map_err(|e| format!("{e}"))?;
+        let line = line_of(&record);
+        if grains.len() == max_rows {
+            return Err(format!("line {line}: more than {max_rows} grains"));
+        }
+        if record.len() != header.len() {
+            return Err(format!("line {line}: {} fields, the header has {}", record.len(), header.len()));
+        }
+        let value = |k: usize| -> Result<f64, String> {
+            let Some(c) = at[k] else { return Ok(0.0) };
+            let field = &record[c];
+            let x: f64 = field
+                .parse()
+                .map_err(|_| format!("line {line}, column {} ({}): {field:?} is not a number", c + 1, COLUMNS[k]))?;
+            if !x.is_finite() {
+                return Err(format!("line {line}, column {} ({}): {field} is not finite", c + 1, COLUMNS[k]));
+            }
+            Ok(x)
+        };
+        let radius = value(2)?;
+        if radius <= 0.0 {
+            return Err(format!("line {line}, column {} (r): radius {radius} must be > 0", at[2].unwrap() + 1));
+        }
+        let tag = value(6)?;
+        if tag < 0.0 || tag.fract() != 0.0 || tag > u32::MAX as f64 {
+            return Err(format!("line {line}, column {} (tag): {tag} is not a whole number >= 0", at[6].unwrap() + 1));
+        }
+        grains.push(GrainRow {
+            center: DVec2::new(value(0)?, value(1)?),
+            radius,
+            velocity: DVec2::new(value(3)?, value(4)?),
+            spin: value(5)?,
+            tag: tag as u32,
+        });
+    }
+    if grains.is_empty() {
+        return Err("no grains after the header".into());
+    }
+    Ok(grains)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn columns_in_any_order_with_optional_ones() {
+        let g = parse_grains("# a packing\nr, y, x, vx\n0.5, 2, 1, -3\n0.25,4,3,0\n", 10).unwrap();
+        assert_eq!(g.len(), 2);
+        assert_eq!(g[0].center, DVec2::new(1.0, 2.0));
+        assert_eq!((g[0].radius, g[0].velocity.x, g[0].spin), (0.5, -3.0, 0.0));
+    }
+
+    #[test]
+    fn errors_name_line_and_column() {
+        let e = parse_grains("x,y,r\n0,0,1\n1,zz,1\n", 10).unwrap_err();
+        assert!(e.contains("line 3, column 2 (y)") && e.contains("\"zz\""), "{e}");
+        let e = parse_grains("x,y,r\n0,0,-1\n", 10).unwrap_err();
+        assert!(e.contains("line 2, column 3 (r)"), "{e}");
+        let e = parse_grains("x,y,radius\n", 10).unwrap_err();
+        assert!(e.contains("line 1, column 3") && e.contains("radius"), "{e}");
+        let e = parse_grains("x,y\n0,0\n", 10).unwrap_err();
+        assert!(e.contains("no column \"r\""), "{e}");
+        let e = parse_grains("x,y,r\n0,0,1,4\n", 10).unwrap_err();
+        assert!(e.contains("line 2: 4 fields"), "{e}");
+        let e = parse_grains("x,y,r\n0,0,1\n1,1,1\n", 1).unwrap_err();
+        assert!(e.contains("line 3: more than 1 grains"), "{e}");
+        let e = parse_grains("x,y,r\n0,inf,1\n", 10).unwrap_err();
+        assert!(e.contains("line 2, column 2 (y)"), "{e}");
+    }
+}

@@ -1,0 +1,230 @@
+//! The scale work: a stopping rule that stops, a device choice users can trust, mixed precision,
+//! threads that give the same results run after run, grains from CSV files, one backend for
+//! every solver × criterion × device.
+
+use std::path::Path;
+
+use moreau::backend::{gpu_refusal, Backend, DeviceChoice, F32_FLOOR};
+use moreau::gpu::GpuContext;
+use moreau::problem::generate::lattice_packing;
+use moreau::solvers::stopping::CHECK_WORK;
+use moreau::solvers::{solve, SolverKind, SolverOptions, StopCriterion, StopReason};
+use moreau::stepping::Simulation;
+use moreau::ContactProblem;
+
+fn gpu_context() -> Option<GpuContext> {
+    match GpuContext::new() {
+        Ok(ctx) => Some(ctx),
+        Err(e) if std::env::var("MOREAU_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("{e}"),
+        Err(e) => {
+            eprintln!("skipping the GPU part: {e}");
+            None
+        }
+    }
+}
+
+fn on_threads<T: Send>(n: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap().install(f)
+}
+
+/// A warm start as a time step has one: the solution of a neighbouring problem (q shifted by 2 %).
+fn warm_started(p: &ContactProblem) -> (ContactProblem, Vec<f64>) {
+    let mut near = p.clone();
+    near.q.iter_mut().enumerate().for_each(|(k, q)| *q *= 1.0 + 0.02 * ((k as f64) * 0.7).sin());
+    let r0 =
+        solve(&near, SolverKind::Nlgs, &SolverOptions { tol: 1e-6, max_iter: 2_000, ..Default::default() }, None).r;
+    (p.clone(), r0)
+}
+
+/// The contact problem of step `steps` of a shipped scene.
+fn scene_problem(path: &str, steps: usize) -> ContactProblem {
+    let s = moreau::scene::load(Path::new(path)).unwrap();
+    let mut sim = Simulation::new(s.world, s.settings).unwrap();
+    sim.keep_problems(true);
+    for _ in 0..steps {
+        sim.step().unwrap();
+    }
+    sim.last_problem().expect("contacts").clone()
+}
+
+#[test]
+fn a_warm_started_solve_stops_within_one_check_of_meeting_tol() {
+    // A deep pile of heavy grains: the change of r between sweeps stays above tol long after
+    // the error has met it, so the light rule alone ran such solves to max_iter.
+    let (p, r0) = warm_started(&scene_problem("scenes/pile_10k.toml", 2));
+    for tol in [1e-4, 1e-5, 1e-6] {
+        // Where the error first meets tol, from the error after every sweep.
+        let traced = SolverOptions { tol: 1e-14, max_iter: 300, history_every: 1, ..Default::default() };
+        let history = solve(&p, SolverKind::Nlgs, &traced, Some(&r0)).history;
+        let k = history.iter().find(|h| h.error <= tol).map(|h| h.iteration).expect("NLGS reaches tol");
+        let run = solve(&p, SolverKind::Nlgs, &SolverOptions { tol, max_iter: 3000, ..Default::default() }, Some(&r0));
+        assert!(run.converged && run.stop == StopReason::Converged, "tol {tol:e}: {}", run.stop_reason);
+        assert!(
+            run.iterations <= k + CHECK_WORK,
+            "tol {tol:e}: met at sweep {k}, stopped at {} (cadence {CHECK_WORK})",
+            run.iterations
+        );
+    }
+}
+
+#[test]
+fn stop_reasons_are_named_the_same_way_everywhere() {
+    let p = lattice_packing(10, 5, 0.5, 1);
+    let short = solve(&p, SolverKind::Jacobi, &SolverOptions { tol: 1e-12, max_iter: 3, ..Default::default() }, None);
+    assert_eq!((short.stop, short.converged), (StopReason::MaxIter, false), "{}", short.stop_reason);
+    let done = solve(&p, SolverKind::Cpg, &SolverOptions { tol: 1e-6, ..Default::default() }, None);
+    assert_eq!(done.stop, StopReason::Converged, "{}", done.stop_reason);
+}
+
+#[test]
+fn auto_never_takes_the_software_adapter_nor_a_tolerance_below_the_f32_floor() {
+    let opts = SolverOptions { tol: 1e-4, ..Default::default() };
+    let auto = Backend::choose(DeviceChoice::Auto, SolverKind::Nlgs, &opts).unwrap();
+    match GpuContext::hardware() {
+        Err(_) => assert!(!auto.is_gpu(), "no hardware GPU here, yet auto chose {}", auto.describe()),
+        Ok(_) => assert!(auto.gpu_context().is_some_and(|c| !c.is_software()), "{}", auto.describe()),
+    }
+    let tight = SolverOptions { tol: F32_FLOOR / 10.0, ..Default::default() };
+    let auto = Backend::choose(DeviceChoice::Auto, SolverKind::Nlgs, &tight).unwrap();
+    assert!(!auto.is_gpu(), "tol below the f32 floor must stay on the CPU: {}", auto.describe());
+    assert!(auto.describe().contains("f32"), "{}", auto.describe());
+    // What the GPU lacks keeps auto on the CPU and makes `gpu` fail by name, before any adapter.
+    let latin = Backend::choose(DeviceChoice::Auto, SolverKind::Latin, &opts).unwrap();
+    assert!(!latin.is_gpu() && latin.describe().contains("latin"), "{}", latin.describe());
+    let e = Backend::choose(DeviceChoice::Gpu, SolverKind::Latin, &opts).err().expect("latin refused on the gpu");
+    assert!(e.to_string().contains("no latin solver"), "{e}");
+}
+
+#[test]
+fn mixed_precision_reaches_1e_8_from_the_gpu() {
+    let Some(ctx) = gpu_context() else { return };
+    let backend = Backend::gpu(ctx);
+    let p = lattice_packing(16, 8, 0.5, 2);
+    for kind in [SolverKind::Nlgs, SolverKind::Pcpg] {
+        let opts = SolverOptions { tol: 1e-8, max_iter: 50_000, ..Default::default() };
+        let r = backend.solve(&p, kind, &opts, None).unwrap();
+        assert!(r.converged && r.error <= 1e-8, "{kind}: {:.2e} ({})", r.error, r.stop_reason);
+        let devices: Vec<&str> = r.parts.iter().map(|p| p.device.as_str()).collect();
+        assert_eq!(devices, ["gpu", "cpu"], "{kind}: {}", r.stop_reason);
+        assert!(r.parts[0].error > 1e-8, "{kind}: the f32 part alone should not reach 1e-8");
+        assert_eq!(r.iterations, r.parts[0].iterations + r.parts[1].iterations);
+    }
+}
+
+#[test]
+fn every_solver_criterion_and_device_is_refused_up_front_or_solves() {
+    let p = lattice_packing(6, 3, 0.5, 4);
+    let criteria = [
+        StopCriterion::Natural,
+        StopCriterion::Quad,
+        StopCriterion::Maxm,
+        StopCriterion::Qm16,
+        StopCriterion::Velocity,
+    ];
+    let mut backends = vec![Backend::cpu()];
+    backends.extend(gpu_context().map(Backend::gpu));
+    for backend in &backends {
+        for kind in SolverKind::ALL {
+            for criterion in criteria {
+                let opts = SolverOptions { tol: 1e-4, max_iter: 20_000, criterion, ..Default::default() };
+                match (backend.check(kind, &opts), gpu_refusal(kind, &opts)) {
+                    (Err(e), Some(why)) => {
+                        assert!(backend.is_gpu() && e.to_string().contains(&why), "{kind}/{criterion:?}: {e}")
+                    }
+                    (Ok(()), refusal) => {
+                        assert!(!backend.is_gpu() || refusal.is_none(), "{kind}/{criterion:?} not refused on the gpu");
+                        let r = backend.solve(&p, kind, &opts, None).unwrap();
+                        assert!(r.error.is_finite(), "{kind}/{criterion:?} on {}", backend.name());
+                        assert_eq!(r.converged, r.stop == StopReason::Converged, "{kind}: {}", r.stop_reason);
+                    }
+                    (Err(e), None) => panic!("{kind}/{criterion:?}: refused for no stated reason: {e}"),
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn threaded_products_are_the_same_bits_as_the_sequential_ones() {
+    let p = lattice_packing(80, 40, 0.5, 5);
+    assert!(p.n_contacts() > moreau::parallel::PARALLEL_MIN);
+    let r: Vec<f64> = (0..2 * p.n_contacts()).map(|k| ((k as f64) * 0.37).sin().abs()).collect();
+    let product = |threads| {
+        on_threads(threads, || {
+            let mut u = vec![0.0; r.len()];
+            p.w.apply(&r, &mut u);
+            u
+        })
+    };
+    let (one, two) = (product(1), product(2));
+    assert!(one.iter().zip(&two).all(|(a, b)| a.to_bits() == b.to_bits()), "threaded W r differs");
+}
+
+#[test]
+fn threaded_nlgs_converges_and_is_the_same_on_two_and_four_threads() {
+    let p = lattice_packing(80, 40, 0.5, 6);
+    let opts = SolverOptions { tol: 1e-6, max_iter: 20_000, ..Default::default() };
+    let runs: Vec<_> =
+        [1, 2, 4, 2].iter().map(|&t| on_threads(t, || solve(&p, SolverKind::Nlgs, &opts, None))).collect();
+    for (t, r) in [1, 2, 4, 2].iter().zip(&runs) {
+        assert!(r.converged && r.error <= 1e-6, "{t} threads: {:.2e} {}", r.error, r.stop_reason);
+    }
+    let bits = |r: &moreau::SolveReport| r.r.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&runs[1]), bits(&runs[2]), "two and four threads sweep in the same colour order");
+    assert_eq!(bits(&runs[1]), bits(&runs[3]), "two threads, run twice");
+}
+
+/// A scene stepped `steps` times on `threads` threads: every position's bits.
+fn stepped(threads: usize, steps: usize) -> Vec<u64> {
+    on_threads(threads, || {
+        let s = moreau::scene::load(Path::new("scenes/pile_10k.toml")).unwrap();
+        let mut sim = Simulation::new(s.world, s.settings).unwrap();
+        for _ in 0..steps {
+            let r = sim.step().unwrap();
+            assert!(r.converged, "step {}: {}", r.step, r.stop_reason);
+        }
+        sim.world.bodies.position.iter().flat_map(|p| [p.x.to_bits(), p.y.to_bits()]).collect()
+    })
+}
+
+#[test]
+fn one_and_two_threads_each_give_the_same_steps_on_every_run() {
+    assert_eq!(stepped(1, 2), stepped(1, 2), "one thread, run twice");
+    assert_eq!(stepped(2, 2), stepped(2, 2), "two threads, run twice");
+}
+
+#[test]
+fn grains_come_from_a_csv_file_and_bad_files_name_line_and_column() {
+    let dir = std::env::temp_dir().join(format!("moreau_grains_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = |csv: &str| {
+        std::fs::write(dir.join("packing.csv"), csv).unwrap();
+        let toml = r#"
+name = "csv"
+effects = ["gravity", "friction", "rotation"]
+[time]
+step = 1e-3
+steps = 3
+[[material]]
+name = "glass"
+density = 2500.0
+[[wall]]
+container = { min = [0.0, 0.0], max = [1.0, 1.0] }
+[[grains]]
+file = "packing.csv"
+"#;
+        moreau::scene::parse(toml, &dir.join("scene.toml"))
+    };
+    let s = scene("x,y,r,vx\n0.2,0.1,0.05,1.0\n0.5,0.1,0.05,0\n0.8,0.1,0.05,0\n").unwrap();
+    assert_eq!(s.world.bodies.len(), 3);
+    assert_eq!(s.world.bodies.velocity[0].x, 1.0);
+    let mut sim = Simulation::new(s.world, s.settings).unwrap();
+    assert!(sim.step().unwrap().error.is_finite());
+    let e = scene("x,y,r\n0.2,0.1,0.05\n0.5,oops,0.05\n").unwrap_err().to_string();
+    assert!(e.contains("grains[0].file") && e.contains("line 3, column 2 (y)"), "{e}");
+    let e = scene("x,y,r\n0.2,0.1,-1\n").unwrap_err().to_string();
+    assert!(e.contains("line 2, column 3 (r)"), "{e}");
+    let e = scene("x,y,diameter\n").unwrap_err().to_string();
+    assert!(e.contains("line 1, column 3") && e.contains("diameter"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}
