@@ -189,14 +189,23 @@ fn report(rows: &[Row], scene: &str, bodies: usize) {
         ));
     }
     std::fs::write(dir.join("peers.csv"), csv).expect("peers.csv");
+    // One curve per engine, thread count and family of settings (tolerances, sweep or
+    // iteration counts), in order of time.
+    let family = |r: &Row| if r.setting.starts_with("tol") { "tolerance" } else { "fixed sweeps" };
+    let keys: std::collections::BTreeSet<_> = rows.iter().map(|r| (r.engine, r.threads, family(r))).collect();
     let mut series: Vec<Series> = Vec::new();
-    for (engine, threads) in rows.iter().map(|r| (r.engine, r.threads)).collect::<std::collections::BTreeSet<_>>() {
-        let points: Vec<(f64, f64)> = rows
+    for (engine, threads, fam) in keys {
+        let mut points: Vec<(f64, f64)> = rows
             .iter()
-            .filter(|r| r.engine == engine && r.threads == threads && r.max_penetration > 0.0)
+            .filter(|r| (r.engine, r.threads, family(r)) == (engine, threads, fam) && r.max_penetration > 0.0)
             .map(|r| (r.ms_per_step, r.max_penetration))
             .collect();
-        series.push((format!("{engine}, {threads} thread(s)"), points));
+        points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let label = match engine {
+            "rapier2d" => format!("rapier2d, 4/8/16 iterations, {threads} thread"),
+            _ => format!("moreau, {fam}, {threads} thread(s)"),
+        };
+        series.push((label, points));
     }
     let chart = Chart {
         title: &format!("{scene}: largest overlap vs time per step"),

@@ -228,3 +228,14 @@ file = "packing.csv"
     assert!(e.contains("line 1, column 3") && e.contains("diameter"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn the_cpu_colouring_is_proper_on_matrix_free_and_explicit_operators() {
+    let p = scene_problem("scenes/pile.toml", 20);
+    let c = moreau::problem::colouring::Colouring::of(&p.w);
+    assert!(c.n_colours() >= 2 && c.order.len() == p.n_contacts());
+    assert!(c.is_proper(moreau::problem::colouring::Colouring::neighbours_in(&p.w)));
+    let explicit = moreau::problem::Delassus::Sparse(p.w.to_block_sparse());
+    let c = moreau::problem::colouring::Colouring::of(&explicit);
+    assert!(c.is_proper(moreau::problem::colouring::Colouring::neighbours_in(&explicit)));
+}

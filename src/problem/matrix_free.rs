@@ -113,7 +113,7 @@ impl SharedSlice {
 impl SharedSlice {
     #[inline]
     pub(crate) fn set(&mut self, k: usize, x: f64) {
-        assert!(k < self.len);
+        debug_assert!(k < self.len);
         // SAFETY: as in `get`.
         unsafe { *self.ptr.add(k) = x }
     }
@@ -122,13 +122,14 @@ impl SharedSlice {
 impl Velocities for SharedSlice {
     #[inline]
     fn get(&self, k: usize) -> f64 {
-        assert!(k < self.len);
+        // In bounds: body and contact indices are checked when the operator is built.
+        debug_assert!(k < self.len);
         // SAFETY: in bounds; no other thread writes element k during this colour (see above).
         unsafe { *self.ptr.add(k) }
     }
     #[inline]
     fn add(&mut self, k: usize, x: f64) {
-        assert!(k < self.len);
+        debug_assert!(k < self.len);
         // SAFETY: as in `get`.
         unsafe { *self.ptr.add(k) += x }
     }
