@@ -63,7 +63,7 @@ impl Default for Backend {
 
 /// Why the GPU path cannot run this solve, if it cannot.
 pub fn gpu_refusal(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
-    if kind == SolverKind::Latin {
+    if !crate::gpu::supports(kind) {
         return Some(GpuError::Unsupported(kind.name().into()).to_string());
     }
     if opts.criterion != StopCriterion::Natural {

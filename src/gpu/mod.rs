@@ -54,5 +54,5 @@ pub fn specialisation(p: &ContactProblem) -> (bool, bool) {
 
 /// Whether the GPU path has this solver.
 pub fn supports(kind: SolverKind) -> bool {
-    !matches!(kind, SolverKind::Latin)
+    !matches!(kind, SolverKind::Latin | SolverKind::Newton | SolverKind::NlgsNewton)
 }

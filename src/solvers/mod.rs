@@ -7,6 +7,7 @@
 //! | LATIN | [`latin`] | local/linear stages with search direction k (augmented Lagrangian) |
 //! | projected Jacobi | [`jacobi`] | all contacts from the same iterate, relaxation and per-contact scaling |
 //! | APGD | [`apgd`] | Nesterov projected gradient with restart, Tresca box with threshold updates |
+//! | Newton / NLGS→Newton | [`newton`] | semismooth Newton on the Alart–Curnier function, GMRES on `W` products (prototype) |
 //!
 //! Every solver is judged by the same f64 error ([`crate::problem::residual`]) through a
 //! [`monitor::Monitor`], and returns a [`SolveReport`].
@@ -17,6 +18,7 @@ pub mod jacobi;
 pub mod latin;
 pub mod lmgc_criteria;
 pub mod monitor;
+pub mod newton;
 pub mod nlgs;
 pub mod stopping;
 
@@ -35,11 +37,23 @@ pub enum SolverKind {
     Latin,
     Jacobi,
     Apgd,
+    /// Semismooth Newton (Alart–Curnier), NLGS sweeps when its line search fails.
+    Newton,
+    /// NLGS while it halves the error every 10 sweeps, then Newton.
+    NlgsNewton,
 }
 
 impl SolverKind {
-    pub const ALL: [SolverKind; 6] =
-        [SolverKind::Nlgs, SolverKind::Cpg, SolverKind::Pcpg, SolverKind::Latin, SolverKind::Jacobi, SolverKind::Apgd];
+    pub const ALL: [SolverKind; 8] = [
+        SolverKind::Nlgs,
+        SolverKind::Cpg,
+        SolverKind::Pcpg,
+        SolverKind::Latin,
+        SolverKind::Jacobi,
+        SolverKind::Apgd,
+        SolverKind::Newton,
+        SolverKind::NlgsNewton,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -49,6 +63,8 @@ impl SolverKind {
             SolverKind::Latin => "latin",
             SolverKind::Jacobi => "jacobi",
             SolverKind::Apgd => "apgd",
+            SolverKind::Newton => "newton",
+            SolverKind::NlgsNewton => "nlgs-newton",
         }
     }
 }
@@ -195,5 +211,7 @@ pub fn solve(problem: &ContactProblem, kind: SolverKind, opts: &SolverOptions, r
         SolverKind::Latin => latin::solve(problem, opts, r0),
         SolverKind::Jacobi => jacobi::solve(problem, opts, r0),
         SolverKind::Apgd => apgd::solve(problem, opts, r0),
+        SolverKind::Newton => newton::solve(problem, opts, r0, false),
+        SolverKind::NlgsNewton => newton::solve(problem, opts, r0, true),
     }
 }

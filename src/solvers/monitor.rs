@@ -66,6 +66,11 @@ impl<'a> Monitor<'a> {
         }
     }
 
+    /// Counts `k` iterations done outside [`Self::observe`] (a batch of sweeps observed once).
+    pub fn add_iterations(&mut self, k: usize) {
+        self.iteration += k;
+    }
+
     pub fn iteration(&self) -> usize {
         self.iteration
     }
