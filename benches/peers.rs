@@ -19,6 +19,7 @@ use moreau::solvers::SolverOptions;
 use moreau::stepping::Simulation;
 use scene::{kinetic_energy, penetration, rapier_pile};
 
+#[derive(serde::Serialize)]
 struct Row {
     engine: &'static str,
     setting: String,
@@ -172,23 +173,9 @@ fn report(rows: &[Row], scene: &str, bodies: usize) {
     }
     let dir = Path::new("target/peers");
     std::fs::create_dir_all(dir).expect("target/peers");
-    let mut csv = String::from(
-        "engine,setting,threads,ms_per_step,mean_penetration,max_penetration,kinetic_energy,overlapping_contacts\n",
-    );
-    for r in rows {
-        csv.push_str(&format!(
-            "{},{},{},{},{},{},{},{}\n",
-            r.engine,
-            r.setting,
-            r.threads,
-            r.ms_per_step,
-            r.mean_penetration,
-            r.max_penetration,
-            r.kinetic_energy,
-            r.contacts
-        ));
-    }
-    std::fs::write(dir.join("peers.csv"), csv).expect("peers.csv");
+    let mut csv = csv::Writer::from_path(dir.join("peers.csv")).expect("peers.csv");
+    rows.iter().for_each(|r| csv.serialize(r).expect("a CSV row"));
+    csv.flush().expect("peers.csv");
     // One curve per engine, thread count and family of settings (tolerances, sweep or
     // iteration counts), in order of time.
     let family = |r: &Row| if r.setting.starts_with("tol") { "tolerance" } else { "fixed sweeps" };

@@ -1,7 +1,11 @@
 //! Uniform-grid broad phase: bodies are counting-sorted into square cells at least one largest
-//! bounding diameter (+ alert) wide, and each body is tested against the 3×3 cells around it.
+//! bounding diameter (+ alert) wide, and each body is tested against the 3×3 cells around it
+//! (bodies in chunks on threads, pairs kept in the sequential order).
 
 use glam::DVec2;
+use rayon::prelude::*;
+
+use crate::parallel::{parallel, CHUNK};
 
 #[derive(Default)]
 pub struct Grid {
@@ -51,23 +55,40 @@ impl Grid {
             self.sorted[fill[c as usize] as usize] = k as u32;
             fill[c as usize] += 1;
         }
-        for i in 0..n {
-            let c = self.cell_of[i] as usize;
-            let (cx, cy) = (c % nx, c / nx);
-            for y in cy.saturating_sub(1)..=(cy + 1).min(ny - 1) {
-                for x in cx.saturating_sub(1)..=(cx + 1).min(nx - 1) {
-                    let cc = x + nx * y;
-                    for &j in &self.sorted[self.cell_start[cc] as usize..self.cell_start[cc + 1] as usize] {
-                        let j = j as usize;
-                        if j > i {
-                            let reach = radius[i] + radius[j] + alert;
-                            if position[i].distance_squared(position[j]) <= reach * reach {
-                                pairs.push((i as u32, j as u32));
+        // Pairs of bodies first..last, in the order a sequential pass finds them.
+        let (cell_of, sorted, cell_start) = (&self.cell_of, &self.sorted, &self.cell_start);
+        let pairs_of = |first: usize, last: usize, out: &mut Vec<(u32, u32)>| {
+            for i in first..last {
+                let c = cell_of[i] as usize;
+                let (cx, cy) = (c % nx, c / nx);
+                for y in cy.saturating_sub(1)..=(cy + 1).min(ny - 1) {
+                    for x in cx.saturating_sub(1)..=(cx + 1).min(nx - 1) {
+                        let cc = x + nx * y;
+                        for &j in &sorted[cell_start[cc] as usize..cell_start[cc + 1] as usize] {
+                            let j = j as usize;
+                            if j > i {
+                                let reach = radius[i] + radius[j] + alert;
+                                if position[i].distance_squared(position[j]) <= reach * reach {
+                                    out.push((i as u32, j as u32));
+                                }
                             }
                         }
                     }
                 }
             }
+        };
+        if parallel(n) {
+            let parts: Vec<Vec<(u32, u32)>> = (0..n.div_ceil(CHUNK))
+                .into_par_iter()
+                .map(|c| {
+                    let mut part = Vec::new();
+                    pairs_of(c * CHUNK, ((c + 1) * CHUNK).min(n), &mut part);
+                    part
+                })
+                .collect();
+            parts.iter().for_each(|p| pairs.extend_from_slice(p));
+        } else {
+            pairs_of(0, n, pairs);
         }
     }
 }
@@ -96,5 +117,23 @@ mod tests {
         pairs.sort_unstable();
         assert!(!brute.is_empty());
         assert_eq!(pairs, brute);
+    }
+
+    #[test]
+    fn threaded_pairs_are_the_sequential_pairs_in_the_same_order() {
+        let mut rng = rand::rngs::SmallRng::seed_from_u64(5);
+        let n = 3 * crate::parallel::PARALLEL_MIN;
+        let pos: Vec<DVec2> = (0..n).map(|_| DVec2::new(rng.gen_range(0.0..100.0), rng.gen_range(0.0..60.0))).collect();
+        let rad: Vec<f64> = (0..n).map(|_| rng.gen_range(0.2..0.6)).collect();
+        let pairs_on = |threads| {
+            rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| {
+                let mut pairs = Vec::new();
+                Grid::default().candidate_pairs(&pos, &rad, 0.05, &mut pairs);
+                pairs
+            })
+        };
+        let one = pairs_on(1);
+        assert!(one.len() > n / 2);
+        assert_eq!(one, pairs_on(2));
     }
 }

@@ -32,20 +32,7 @@ impl Colouring {
 /// Neighbours of each contact in an explicit `W`: a block in row a or in column a (the pattern
 /// need not be symmetric).
 pub fn bsr_adjacency(w: &BsrLayout) -> Vec<Vec<usize>> {
-    let n = w.row_ptr.len() - 1;
-    let mut adjacency = vec![Vec::new(); n];
-    for a in 0..n {
-        for &b in &w.cols[w.row_ptr[a] as usize..w.row_ptr[a + 1] as usize] {
-            let b = b as usize;
-            if b != a {
-                adjacency[a].push(b);
-                adjacency[b].push(a);
-            }
-        }
-    }
-    for list in &mut adjacency {
-        list.sort_unstable();
-        list.dedup();
-    }
-    adjacency
+    crate::problem::colouring::pattern_adjacency(w.row_ptr.len() - 1, |a| {
+        w.cols[w.row_ptr[a] as usize..w.row_ptr[a + 1] as usize].iter().map(|&b| b as usize)
+    })
 }

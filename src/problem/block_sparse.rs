@@ -63,21 +63,9 @@ impl BlockSparse {
     /// Neighbours of each contact: a block in its row or its column (the pattern need not be
     /// symmetric), sorted.
     pub fn adjacency(&self) -> Vec<Vec<usize>> {
-        let n = self.n_contacts();
-        let mut adjacency = vec![Vec::new(); n];
-        for a in 0..n {
-            for &b in &self.cols[self.row_ptr[a]..self.row_ptr[a + 1]] {
-                if b != a {
-                    adjacency[a].push(b);
-                    adjacency[b].push(a);
-                }
-            }
-        }
-        for list in &mut adjacency {
-            list.sort_unstable();
-            list.dedup();
-        }
-        adjacency
+        super::colouring::pattern_adjacency(self.n_contacts(), |a| {
+            self.cols[self.row_ptr[a]..self.row_ptr[a + 1]].iter().copied()
+        })
     }
 
     pub fn n_blocks(&self) -> usize {

@@ -136,3 +136,22 @@ impl Colouring {
         }
     }
 }
+
+/// Neighbours of each of `n` contacts in a block pattern whose row `a` lists `row(a)`: a block
+/// in a contact's row or in its column (the pattern need not be symmetric), sorted.
+pub fn pattern_adjacency<I: Iterator<Item = usize>>(n: usize, row: impl Fn(usize) -> I) -> Vec<Vec<usize>> {
+    let mut adjacency = vec![Vec::new(); n];
+    for a in 0..n {
+        for b in row(a) {
+            if b != a {
+                adjacency[a].push(b);
+                adjacency[b].push(a);
+            }
+        }
+    }
+    for list in &mut adjacency {
+        list.sort_unstable();
+        list.dedup();
+    }
+    adjacency
+}
