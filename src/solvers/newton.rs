@@ -14,6 +14,7 @@
 
 use super::monitor::Monitor;
 use super::{nlgs, SolveReport, SolverKind, SolverOptions};
+use crate::problem::cone::project_cone;
 use crate::problem::residual::natural_map_error;
 use crate::problem::{dot, norm, ContactProblem, Mat2};
 
@@ -269,6 +270,12 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>, nlgs_first: 
         if monitor.observe(&r, Some(&scratch)) {
             break;
         }
+    }
+    // Newton's iterates approach the cone from anywhere: return impulses landed on it (the
+    // error of what is returned is recomputed by `finish`).
+    for a in 0..nc {
+        let ra = project_cone([r[2 * a], r[2 * a + 1]], p.mu[a]);
+        r[2 * a..2 * a + 2].copy_from_slice(&ra);
     }
     monitor.finish(r)
 }
