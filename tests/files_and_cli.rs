@@ -97,3 +97,70 @@ fn solve_command_writes_the_report_and_fails_cleanly_on_bad_input() {
     let out = moreau().arg("solve").arg(&file).args(["--tol", "nan"]).output().unwrap();
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--tol"));
 }
+
+/// Inputs that used to panic or abort now fail with a message naming the problem and exit 2.
+#[test]
+fn former_panics_and_aborts_are_clear_errors() {
+    let tmp = std::env::temp_dir().join(format!("moreau-hostile-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    let runs: [(&[&str], &str); 3] = [
+        (&["generate", "lattice", "--nx", "100000", "--ny", "100000", "--out", "x.dat"], "at most"),
+        (&["bench", "--sizes", "1000000000000"], "--sizes 1000000000000"),
+        (
+            &["sweep", "scenes/signorini_punch.toml", "--solvers", "nlgs", "--latin-k-factors", "0", "--tols", "1e-2"],
+            "--latin-k-factors 0",
+        ),
+    ];
+    for (args, needle) in runs {
+        let mut cmd = moreau();
+        cmd.current_dir(env!("CARGO_MANIFEST_DIR")).args(args);
+        if args[0] == "sweep" {
+            cmd.arg("--out").arg(&tmp);
+        }
+        let out = cmd.output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(needle) && !stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+    let tiny = r#"
+name = "tiny"
+effects = ["gravity"]
+[time]
+step = 1e-3
+steps = 1
+[[material]]
+name = "m"
+density = 1.0
+[[body]]
+polygon = { center = [0.0, 0.0], vertices = [[0.0, 0.0], [1e-30, 0.0], [0.0, 1e-30]] }
+"#;
+    let e = moreau::scene::parse(tiny, std::path::Path::new("tiny.toml")).err().expect("refused");
+    assert!(e.to_string().contains("degenerate polygon"), "{e}");
+    std::fs::remove_dir_all(&tmp).ok();
+}
+
+/// `--strict` turns a missed tolerance into a non-zero exit, after the outputs are written.
+#[test]
+fn strict_makes_a_missed_tolerance_an_error() {
+    let dir = std::env::temp_dir().join(format!("moreau-strict-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("p.dat");
+    std::fs::write(&file, format_fc2d(&lattice_packing(10, 5, 0.5, 3), Storage::Sparse)).unwrap();
+    let out_json = dir.join("r.json");
+    let solve = |strict: bool| {
+        let mut c = moreau();
+        c.args(["solve", file.to_str().unwrap(), "--device", "cpu", "--max-iter", "2", "--tol", "1e-12", "--out"]);
+        c.arg(&out_json);
+        if strict {
+            c.arg("--strict");
+        }
+        c.output().unwrap()
+    };
+    assert!(solve(false).status.success());
+    std::fs::remove_file(&out_json).unwrap();
+    let strict = solve(true);
+    assert_eq!(strict.status.code(), Some(2), "{}", String::from_utf8_lossy(&strict.stderr));
+    assert!(String::from_utf8_lossy(&strict.stderr).contains("--strict"));
+    assert!(out_json.exists(), "the result is written before the strict exit");
+    std::fs::remove_dir_all(&dir).ok();
+}

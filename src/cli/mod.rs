@@ -85,6 +85,9 @@ struct SolveArgs {
     /// CPU threads (0: all cores; 1: the sequential reference path).
     #[arg(long, default_value_t = 0)]
     threads: usize,
+    /// Exit non-zero (after writing the outputs) when the solve misses its tolerance.
+    #[arg(long)]
+    strict: bool,
 }
 
 #[derive(Subcommand)]
@@ -147,6 +150,12 @@ fn run(cli: Cli) -> Result<()> {
             }
             if !(mass_ratio.is_finite() && mass_ratio > 0.0) {
                 bail!("--mass-ratio {mass_ratio}: must be finite and > 0");
+            }
+            // About two contacts per lattice site, and the problem file grows with them.
+            const MAX_GENERATED_CONTACTS: usize = 20_000_000;
+            let sites = nx.max(1).saturating_mul(ny.max(1));
+            if sites.saturating_mul(2) > MAX_GENERATED_CONTACTS || n > MAX_GENERATED_CONTACTS {
+                bail!("--nx {nx} --ny {ny} --n {n}: at most {MAX_GENERATED_CONTACTS} contacts can be generated");
             }
             let problem = match kind {
                 GeneratedProblem::HeavyColumn => generate::heavy_column(n.max(1), mass_ratio, mu),
@@ -227,6 +236,15 @@ fn solve_command(a: SolveArgs) -> Result<()> {
         output.adapter = adapter.as_deref();
         let json = serde_json::to_string(&output)?;
         std::fs::write(out, json).with_context(|| format!("writing {}", out.display()))?;
+    }
+    if a.strict && !report.converged {
+        bail!(
+            "--strict: {} did not reach tol {:e} ({}; error {:.3e})",
+            report.solver,
+            a.tol,
+            report.stop_reason,
+            report.error
+        );
     }
     Ok(())
 }

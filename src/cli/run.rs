@@ -52,6 +52,9 @@ pub struct RunArgs {
     /// CPU threads for detection and solves (0: all cores; 1: the sequential reference path).
     #[arg(long, default_value_t = 0)]
     threads: usize,
+    /// Exit non-zero (after writing the outputs) when any step misses its tolerance.
+    #[arg(long)]
+    strict: bool,
 }
 
 /// Non-converged steps reported one by one; the rest are counted in the summary and steps.csv.
@@ -190,5 +193,8 @@ pub fn run_command(a: RunArgs) -> Result<()> {
     }
     output.finish(&summary)?;
     eprintln!("outputs in {}", out_dir.display());
+    if a.strict && summary.unconverged_steps > 0 {
+        bail!("--strict: {} of {} steps missed tol {:.0e}", summary.unconverged_steps, summary.steps, summary.tol);
+    }
     Ok(())
 }

@@ -277,6 +277,9 @@ fn structural_sweep(
     let tightest = *tols.last().unwrap();
     // Every iteration is recorded: the paper's Fig. 17.1 is error against iterations.
     let opts = SolverOptions { tol: tightest, max_iter: a.max_iter, history_every: 1, ..scene.options.clone() };
+    if let Some(f) = a.latin_k_factors.iter().find(|f| !(f.is_finite() && **f > 0.0)) {
+        bail!("--latin-k-factors {f}: each factor must be finite and > 0");
+    }
     let rows = latin_k_sweep(&problems, &a.latin_k_factors, tightest, a.max_iter);
     write_csv(&a.out.join("latin_k.csv"), rows.iter())?;
     let best_factor = |diagonal: bool| {

@@ -48,7 +48,7 @@ pub fn solve(
     for a in 0..nc {
         let s = p.mu[a] * r[2 * a].max(0.0);
         r[2 * a] = r[2 * a].max(0.0);
-        r[2 * a + 1] = r[2 * a + 1].clamp(-s, s);
+        r[2 * a + 1] = crate::problem::cone::clamp_symmetric(r[2 * a + 1], s);
     }
     let lipschitz = 1.0 * largest_eigenvalue(p, 30).max(f64::MIN_POSITIVE);
     let zeros = vec![[0.0f32; 2]; nc];

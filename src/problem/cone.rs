@@ -49,7 +49,7 @@ pub fn project_cone(x: [f64; 2], mu: f64) -> [f64; 2] {
 pub fn project_box(x: [f64; 2], mu: f64) -> [f64; 2] {
     let rn = x[0].max(0.0);
     let s = mu * rn;
-    [rn, x[1].clamp(-s, s)]
+    [rn, clamp_symmetric(x[1], s)]
 }
 
 /// Status of an admissible `r` (on the cone) for reporting and CPG's active sets.
@@ -158,5 +158,16 @@ mod tests {
             assert!(p[1].abs() <= mu * p[0] + 1e-15 && p[0] >= 0.0, "{p:?}");
             assert_eq!(project_cone(p, mu), p);
         }
+    }
+}
+
+/// `x` clamped to `[-s, s]`; NaN when `s` is negative or NaN (where `f64::clamp` would panic), so
+/// a broken bound shows as a non-finite iterate that the monitor reports.
+#[inline]
+pub fn clamp_symmetric(x: f64, s: f64) -> f64 {
+    if s >= 0.0 {
+        x.clamp(-s, s)
+    } else {
+        f64::NAN
     }
 }

@@ -13,7 +13,7 @@ use crate::problem::{dot, norm, ContactProblem};
 fn project(r: &mut [f64], thresholds: &[f64]) {
     for (a, &s) in thresholds.iter().enumerate() {
         r[2 * a] = r[2 * a].max(0.0);
-        r[2 * a + 1] = r[2 * a + 1].clamp(-s, s);
+        r[2 * a + 1] = crate::problem::cone::clamp_symmetric(r[2 * a + 1], s);
     }
 }
 

@@ -61,7 +61,7 @@ fn local_stage(mu: &[f64], k: &[f64], z: &[f64], w: &[f64], z_hat: &mut [f64], w
         let st = z[j] - w[j] / k[j];
         let zn = sn.max(0.0);
         let s = m * zn;
-        let zt = st.clamp(-s, s);
+        let zt = crate::problem::cone::clamp_symmetric(st, s);
         z_hat[i] = zn;
         z_hat[j] = zt;
         w_hat[i] = k[i] * (zn - sn);

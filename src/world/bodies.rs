@@ -167,6 +167,16 @@ impl Bodies {
                 if vertices.len() < 3 || !vertices.iter().all(|&v| finite(v)) {
                     return Err(format!("a polygon needs at least 3 finite vertices, got {}", vertices.len()));
                 }
+                // The hull is computed in f32 (parry2d), which panics on vertices closer than its
+                // tolerance: refuse a polygon smaller than f32 can tell apart at its position.
+                let span = vertices.iter().map(|v| (*v - vertices[0]).length()).fold(0.0, f64::max);
+                let reach = vertices.iter().map(|v| v.abs().max_element()).fold(0.0, f64::max);
+                let needed = (1e-5 * reach).max(1e-12);
+                if !(span >= needed) {
+                    return Err(format!(
+                        "degenerate polygon: its vertices lie within {span:e} m of each other (at least {needed:e} m needed)"
+                    ));
+                }
                 let pts: Vec<_> = vertices.iter().map(|v| parry2d::math::Vector::new(v.x as f32, v.y as f32)).collect();
                 let hull = ConvexPolygon::from_convex_hull(&pts).ok_or_else(|| {
                     "degenerate polygon: its vertices have no convex hull of positive area".to_string()

@@ -5,7 +5,7 @@ pub fn apgd_rebox(mu: &[f32], gamma: &mut [[f32; 2]], y: &mut [[f32; 2]], s: &mu
     for a in 0..mu.len() {
         let rn = gamma[a][0].max(0.0);
         let t = mu[a] * rn;
-        let p = [rn, gamma[a][1].clamp(-t, t)];
+        let p = [rn, if t >= 0.0 { gamma[a][1].clamp(-t, t) } else { f32::NAN }];
         s[a] = t;
         gamma[a] = p;
         y[a] = p;

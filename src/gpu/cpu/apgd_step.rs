@@ -11,7 +11,7 @@ pub fn apgd_step(
 ) {
     for a in 0..s.len() {
         let x = [y[a][0] - scalars[4] * g[a][0], y[a][1] - scalars[4] * g[a][1]];
-        let n = [x[0].max(0.0), x[1].clamp(-s[a], s[a])];
+        let n = [x[0].max(0.0), if s[a] >= 0.0 { x[1].clamp(-s[a], s[a]) } else { f32::NAN }];
         next[a] = n;
         diff[a] = [n[0] - gamma[a][0], n[1] - gamma[a][1]];
     }
