@@ -140,6 +140,17 @@ pub fn solve_single_contact(w: &Mat2, q: [f64; 2], mu: f64) -> ([f64; 2], Contac
     (best.0, best.1)
 }
 
+/// `x` clamped to `[-s, s]`; NaN when `s` is negative or NaN (where `f64::clamp` would panic), so
+/// a broken bound shows as a non-finite iterate that the monitor reports.
+#[inline]
+pub fn clamp_symmetric(x: f64, s: f64) -> f64 {
+    if s >= 0.0 {
+        x.clamp(-s, s)
+    } else {
+        f64::NAN
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -158,16 +169,5 @@ mod tests {
             assert!(p[1].abs() <= mu * p[0] + 1e-15 && p[0] >= 0.0, "{p:?}");
             assert_eq!(project_cone(p, mu), p);
         }
-    }
-}
-
-/// `x` clamped to `[-s, s]`; NaN when `s` is negative or NaN (where `f64::clamp` would panic), so
-/// a broken bound shows as a non-finite iterate that the monitor reports.
-#[inline]
-pub fn clamp_symmetric(x: f64, s: f64) -> f64 {
-    if s >= 0.0 {
-        x.clamp(-s, s)
-    } else {
-        f64::NAN
     }
 }

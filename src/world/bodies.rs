@@ -172,7 +172,7 @@ impl Bodies {
                 let span = vertices.iter().map(|v| (*v - vertices[0]).length()).fold(0.0, f64::max);
                 let reach = vertices.iter().map(|v| v.abs().max_element()).fold(0.0, f64::max);
                 let needed = (1e-5 * reach).max(1e-12);
-                if !(span >= needed) {
+                if span.is_nan() || span < needed {
                     return Err(format!(
                         "degenerate polygon: its vertices lie within {span:e} m of each other (at least {needed:e} m needed)"
                     ));
