@@ -7,6 +7,8 @@ use thiserror::Error;
 pub enum GpuError {
     #[error("no GPU adapter found (hardware or software): {0}; on Debian, `apt-get install mesa-vulkan-drivers libvulkan1` provides the software adapter")]
     NoAdapter(String),
+    #[error("no hardware GPU (a software adapter, if installed, is taken only by --device gpu)")]
+    NoHardware,
     #[error("the adapter {adapter} refused a device: {message}")]
     NoDevice { adapter: String, message: String },
     #[error("the GPU path has no {0} solver yet (it has: nlgs, cpg, pcpg, jacobi, apgd)")]
@@ -49,9 +51,7 @@ impl GpuContext {
     /// A hardware adapter only (a discrete GPU first); the software adapter is never taken.
     pub fn hardware() -> Result<Self, GpuError> {
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let adapter = Self::hardware_adapter(&instance).ok_or_else(|| {
-            GpuError::NoAdapter("no hardware GPU adapter (a software adapter is taken only by --device gpu)".into())
-        })?;
+        let adapter = Self::hardware_adapter(&instance).ok_or(GpuError::NoHardware)?;
         Self::on(adapter)
     }
 
