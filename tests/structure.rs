@@ -101,6 +101,26 @@ fn the_four_solvers_agree() {
     }
 }
 
+/// The headline of the punch (closed nodes, contact half-width) does not depend on the solver:
+/// a projected gradient leaves force noise of the order of tol at open nodes, which must not
+/// count as contact. Solves at tol 1e-6.
+#[test]
+fn the_contact_zone_is_the_same_for_every_solver() {
+    let m = punch([80, 40], Some(2.0), 1e-3);
+    let problems = PunchProblems::new(&m).unwrap();
+    let opts = SolverOptions { tol: 1e-6, max_iter: 200_000, ..SolverOptions::default() };
+    let zone = |name: &str| {
+        let r = run(&problems, StructuralSolver::parse(name).unwrap(), &opts);
+        assert!(r.converged, "{name}: {}", r.stop_reason);
+        m.solution(&r.z, &r.w).unwrap().closed_nodes()
+    };
+    let reference = zone("nlgs");
+    assert!(!reference.is_empty() && reference.len() < m.n_contacts(), "{} closed", reference.len());
+    for name in ["pcpg", "cpg", "latin", "dual_cg"] {
+        assert_eq!(zone(name), reference, "{name} closes other nodes than NLGS");
+    }
+}
+
 /// LATIN's k changes the path, not the solution: k from 1/16 to 16 times the mean of diag M and
 /// of diag M itself give the same gaps within 1e-8 (tol 1e-11).
 #[test]

@@ -56,6 +56,9 @@ pub fn bench_command(a: BenchArgs) -> Result<()> {
     if let Some(&big) = a.sizes.iter().find(|&&s| s > MAX_BENCH_CONTACTS || s == 0) {
         bail!("--sizes {big}: each size must lie in 1..={MAX_BENCH_CONTACTS} contacts");
     }
+    if let Some(tol) = a.solve_to.filter(|t| !(t.is_finite() && *t > 0.0)) {
+        bail!("--solve-to {tol}: the tolerance must be finite and > 0");
+    }
     if let Some(scene) = &a.scene {
         return scene_bench(scene, &a);
     }

@@ -151,16 +151,19 @@ fn run(cli: Cli) -> Result<()> {
             if !(mass_ratio.is_finite() && mass_ratio > 0.0) {
                 bail!("--mass-ratio {mass_ratio}: must be finite and > 0");
             }
+            if n == 0 || nx == 0 || ny == 0 {
+                bail!("--n {n} --nx {nx} --ny {ny}: each must be at least 1");
+            }
             // About two contacts per lattice site, and the problem file grows with them.
             const MAX_GENERATED_CONTACTS: usize = 20_000_000;
-            let sites = nx.max(1).saturating_mul(ny.max(1));
+            let sites = nx.saturating_mul(ny);
             if sites.saturating_mul(2) > MAX_GENERATED_CONTACTS || n > MAX_GENERATED_CONTACTS {
                 bail!("--nx {nx} --ny {ny} --n {n}: at most {MAX_GENERATED_CONTACTS} contacts can be generated");
             }
             let problem = match kind {
-                GeneratedProblem::HeavyColumn => generate::heavy_column(n.max(1), mass_ratio, mu),
-                GeneratedProblem::Lattice => generate::lattice_packing(nx.max(1), ny.max(1), mu, seed),
-                GeneratedProblem::Random => generate::random_small(n.max(1), mu, seed),
+                GeneratedProblem::HeavyColumn => generate::heavy_column(n, mass_ratio, mu),
+                GeneratedProblem::Lattice => generate::lattice_packing(nx, ny, mu, seed),
+                GeneratedProblem::Random => generate::random_small(n, mu, seed),
             };
             let storage = match storage {
                 StorageChoice::Dense => Storage::Dense,

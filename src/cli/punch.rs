@@ -82,9 +82,7 @@ pub fn run_punch(mut scene: PunchScene, o: PunchOverrides) -> Result<()> {
     let condensation_seconds = t.elapsed().as_secs_f64();
     let result = run(&problems, scene.solver, &scene.options);
     let sol = model.solution(&result.z, &result.w)?;
-    // Closed: carrying a force above round-off of the largest one (open nodes of an iterate hold ±tol).
-    let max_force = sol.w.iter().copied().fold(0.0, f64::max);
-    let closed: Vec<usize> = (0..model.n_contacts()).filter(|&k| sol.w[k] > 1e-6 * max_force).collect();
+    let closed = sol.closed_nodes();
     let contact_half_width = closed.iter().map(|&k| model.mesh.nodes[model.mesh.contact[k]][0]).fold(0.0, f64::max);
     let load = -2.0 * sol.platen_force;
     let e_star = model.material.young / (1.0 - model.material.poisson.powi(2));

@@ -37,7 +37,7 @@ pub struct RunArgs {
     /// Output directory (default: out/<scene name>).
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Write VTK files every N steps (default: the scene's; 0 = never).
+    /// Write VTK files every N steps, and at the last (default: the scene's; 0 = never).
     #[arg(long)]
     vtk_every: Option<usize>,
     /// Step whose PNG picture is written (default: the scene's, else the last step).
@@ -102,11 +102,26 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         scene.settings.options.max_iter = m;
     }
     set_threads(a.threads)?;
+    let steps = scene.steps;
+    let vtk_every = match (a.vtk_every, scene.output.vtk) {
+        (Some(n), _) => n,
+        (None, true) => scene.output.every,
+        (None, false) => 0,
+    };
+    if let Some(&late) = a.dump_problem.iter().find(|&&k| k == 0 || k > steps) {
+        bail!("--dump-problem {late}: the run has steps 1 to {steps}");
+    }
+    let picture_step = match (a.picture_step, scene.output.picture_step) {
+        (Some(k), _) if k == 0 || k > steps => bail!("--picture-step {k}: the run has steps 1 to {steps}"),
+        (Some(k), _) => k,
+        (None, Some(k)) if k > steps => {
+            eprintln!("warning: the scene's picture_step {k} is past the last step: the picture is of step {steps}");
+            steps
+        }
+        (None, k) => k.unwrap_or(steps),
+    };
     let backend = choose_backend(a.device, scene.settings.solver, &scene.settings.options)?;
-    let vtk_every = a.vtk_every.unwrap_or(if scene.output.vtk { scene.output.every.max(1) } else { 0 });
-    let picture_step = a.picture_step.or(scene.output.picture_step).unwrap_or(scene.steps).min(scene.steps);
     let out_dir = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.name));
-    let mut output = RunOutput::create(&out_dir)?;
     let mut summary = RunSummary {
         scene: scene.name.clone(),
         device: match backend.adapter_name() {
@@ -120,7 +135,6 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         bodies: scene.world.bodies.len(),
         ..RunSummary::default()
     };
-    let steps = scene.steps;
     let diameter = scene.world.mean_diameter();
     eprintln!(
         "{}: {} bodies, {} walls, effects [{}], h = {:e}, {} steps, solver {} tol {:.0e}",
@@ -135,7 +149,14 @@ pub fn run_command(a: RunArgs) -> Result<()> {
     );
     let mut sim = Simulation::new(scene.world, scene.settings)?;
     sim.set_backend(backend)?;
+    for w in sim.check().with_context(|| format!("checking {}", a.scene.display()))? {
+        eprintln!("warning: {w}");
+    }
     sim.keep_problems(!a.dump_problem.is_empty());
+    let (mut output, cleared) = RunOutput::create(&out_dir)?;
+    if cleared > 0 {
+        eprintln!("removed {cleared} file(s) of an earlier run from {}", out_dir.display());
+    }
     let bar = if a.quiet { ProgressBar::hidden() } else { ProgressBar::new(steps as u64) };
     bar.set_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} steps {per_sec} {msg} [{elapsed_precise} < {eta}]")
@@ -143,7 +164,22 @@ pub fn run_command(a: RunArgs) -> Result<()> {
     );
     bar.enable_steady_tick(Duration::from_millis(500));
     for _ in 0..steps {
-        let report = sim.step().with_context(|| format!("simulating {}", a.scene.display()))?;
+        let report = match sim.step() {
+            Ok(report) => report,
+            Err(e) => {
+                // Keep what was written, and the last good state, for the user to inspect.
+                bar.finish_and_clear();
+                summary.close();
+                summary.failure = Some(e.to_string());
+                output.vtk(&sim)?;
+                output.finish(&summary)?;
+                let kept = match sim.steps_done() {
+                    0 => "the initial state (VTK)".to_string(),
+                    k => format!("the outputs of steps 1 to {k} and the state after step {k} (VTK)"),
+                };
+                bail!("{}: {e}\n{kept} are in {}", a.scene.display(), out_dir.display());
+            }
+        };
         output.record(&report)?;
         summary.add(&report);
         if !report.converged && summary.unconverged_steps <= WARNINGS_SHOWN {

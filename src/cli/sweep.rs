@@ -105,6 +105,12 @@ pub fn sweep_command(a: SweepArgs) -> Result<()> {
     }
     let mut tols = a.tols.clone();
     tols.sort_by(|x, y| y.total_cmp(x));
+    if let Some(p) = a.profile_tol {
+        let tightest = *tols.last().expect("tols is not empty");
+        if !(p.is_finite() && p > 0.0 && p >= tightest) {
+            bail!("--profile-tol {p}: must be finite, > 0 and no finer than the finest of --tols ({tightest:e}), or every solver's profile would be empty");
+        }
+    }
     let devices: Vec<Device> = a
         .devices
         .iter()

@@ -23,6 +23,8 @@ struct Row {
     stop: &'static str,
     gpu_dispatches: u64,
     gpu_bytes: u64,
+    missed: usize,
+    projected: usize,
     max_penetration: f64,
     kinetic_energy: f64,
     potential_energy: f64,
@@ -67,6 +69,13 @@ pub struct RunSummary {
     pub max_penetration_per_diameter: f64,
     pub final_kinetic_energy: f64,
     pub final_time: f64,
+    /// Contacts found overlapping at the end of a step that its start missed (grains kicked
+    /// beyond their reach), and steps whose positions the projection corrected.
+    pub missed_contacts: usize,
+    pub projected_steps: usize,
+    /// Why the run stopped before its last step (the outputs hold the steps before).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub failure: Option<String>,
 }
 
 impl RunSummary {
@@ -91,6 +100,8 @@ impl RunSummary {
         self.last_contacts = r.contacts;
         self.max_penetration = self.max_penetration.max(r.max_penetration);
         self.final_kinetic_energy = r.kinetic_energy;
+        self.missed_contacts += r.missed;
+        self.projected_steps += usize::from(r.projected > 0);
         self.final_time = r.time;
         self.steps_per_second = self.steps as f64 / self.seconds.max(1e-12);
     }
@@ -143,11 +154,15 @@ pub struct RunOutput {
 }
 
 impl RunOutput {
-    pub fn create(dir: &Path) -> Result<Self> {
+    /// Creates `dir` and removes what an earlier run wrote there (only files named as `moreau
+    /// run` names them), so that no stale VTK file or picture sits beside the new ones; returns
+    /// how many were removed with the writer.
+    pub fn create(dir: &Path) -> Result<(Self, usize)> {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let removed = clear_earlier_run(dir)?;
         let path = dir.join("steps.csv");
         let csv = csv::Writer::from_path(&path).with_context(|| format!("creating {}", path.display()))?;
-        Ok(Self { dir: dir.to_path_buf(), csv, grains: Vec::new(), contacts: Vec::new(), walls: Vec::new() })
+        Ok((Self { dir: dir.to_path_buf(), csv, grains: Vec::new(), contacts: Vec::new(), walls: Vec::new() }, removed))
     }
 
     pub fn record(&mut self, r: &StepReport) -> Result<()> {
@@ -162,6 +177,8 @@ impl RunOutput {
             stop: r.stop.name(),
             gpu_dispatches: r.gpu_dispatches,
             gpu_bytes: r.gpu_bytes,
+            missed: r.missed,
+            projected: r.projected,
             max_penetration: r.max_penetration,
             kinetic_energy: r.kinetic_energy,
             potential_energy: r.potential_energy,
@@ -189,5 +206,45 @@ impl RunOutput {
         let path = self.dir.join("summary.json");
         std::fs::write(&path, serde_json::to_string_pretty(summary)?)
             .with_context(|| format!("writing {}", path.display()))
+    }
+}
+
+/// Is `name` a file that `moreau run` writes?
+fn is_run_output(name: &str) -> bool {
+    let numbered = |prefix: &str, ext: &str| {
+        name.strip_prefix(prefix)
+            .and_then(|rest| rest.strip_suffix(ext))
+            .is_some_and(|digits| !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit()))
+    };
+    matches!(name, "steps.csv" | "summary.json" | "grains.pvd" | "contacts.pvd" | "walls.pvd")
+        || numbered("grains_", ".vtu")
+        || numbered("contacts_", ".vtu")
+        || numbered("walls_", ".vtu")
+        || numbered("state_", ".png")
+        || numbered("problem_", ".dat")
+}
+
+fn clear_earlier_run(dir: &Path) -> Result<usize> {
+    let mut removed = 0;
+    for entry in std::fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))? {
+        let entry = entry?;
+        if entry.file_type()?.is_file() && entry.file_name().to_str().is_some_and(is_run_output) {
+            std::fs::remove_file(entry.path()).with_context(|| format!("removing {}", entry.path().display()))?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn only_files_named_as_a_run_names_them_are_cleared() {
+        for name in ["steps.csv", "grains_000010.vtu", "state_000300.png", "problem_000001.dat", "walls.pvd"] {
+            assert!(super::is_run_output(name), "{name}");
+        }
+        for name in ["notes.txt", "grains_.vtu", "grains_12a.vtu", "my_steps.csv", "state_1.png.bak"] {
+            assert!(!super::is_run_output(name), "{name}");
+        }
     }
 }

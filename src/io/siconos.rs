@@ -10,8 +10,8 @@ use thiserror::Error;
 
 #[derive(Debug, Error)]
 pub enum FileError {
-    #[error("{path}: {source}")]
-    Io { path: String, source: std::io::Error },
+    #[error("{path}: {cause}")]
+    Io { path: String, cause: std::io::Error },
     #[error("{path}: line {line}: {msg}")]
     Parse { path: String, line: usize, msg: String },
     #[error("{path}: {msg}")]
@@ -95,7 +95,7 @@ impl<'a> Cursor<'a> {
 /// Reads a problem file; errors name the file, the line and the problem.
 pub fn read_fc2d(path: &Path) -> Result<ContactProblem, FileError> {
     let p = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| FileError::Io { path: p.clone(), source })?;
+    let text = std::fs::read_to_string(path).map_err(|cause| FileError::Io { path: p.clone(), cause })?;
     parse_fc2d(&text).map_err(|e| match e {
         Ok(ParseError { line, msg }) => FileError::Parse { path: p, line, msg },
         Err(msg) => FileError::Invalid { path: p, msg },
@@ -233,7 +233,7 @@ pub enum Storage {
 /// Writes a problem (assembling `W` if it is matrix-free), full f64 precision.
 pub fn write_fc2d(problem: &ContactProblem, storage: Storage, path: &Path) -> Result<(), FileError> {
     let text = format_fc2d(problem, storage);
-    std::fs::write(path, text).map_err(|source| FileError::Io { path: path.display().to_string(), source })
+    std::fs::write(path, text).map_err(|cause| FileError::Io { path: path.display().to_string(), cause })
 }
 
 pub fn format_fc2d(problem: &ContactProblem, storage: Storage) -> String {

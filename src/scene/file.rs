@@ -14,7 +14,30 @@ use crate::solvers::{Ordering, SolverKind, SolverOptions, StopCriterion};
 use crate::stepping::StepSettings;
 use crate::world::{BodySpec, Effect, Effects, Interaction, Materials, PolygonShape, Wall, WallShape, World};
 
-type P = [f64; 2];
+type P = Exact<f64, 2>;
+
+/// A TOML array of exactly `N` values: `[0.0, -9.81, 0.0]` where a 2D vector is expected is an
+/// error, not a vector whose third value is dropped.
+#[derive(Clone, Copy, Debug)]
+struct Exact<T, const N: usize>([T; N]);
+
+impl<T, const N: usize> std::ops::Deref for Exact<T, N> {
+    type Target = [T; N];
+    fn deref(&self) -> &[T; N] {
+        &self.0
+    }
+}
+
+impl<'de, T: Deserialize<'de>, const N: usize> Deserialize<'de> for Exact<T, N> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let values = Vec::<T>::deserialize(d)?;
+        let got = values.len();
+        let array: [T; N] = values.try_into().map_err(|_| {
+            serde::de::Error::invalid_length(got, &format!("an array of exactly {N} values ([x, y] in 2D)").as_str())
+        })?;
+        Ok(Self(array))
+    }
+}
 
 /// Bounds on what a scene file may ask a generator for, so that no file can make the parser run
 /// out of memory or time.
@@ -26,7 +49,7 @@ const MAX_POLYGON_SIDES: usize = 1_000;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SceneFile {
-    name: Option<String>,
+    name: Option<Spanned<String>>,
     description: Option<String>,
     #[serde(default)]
     effects: Vec<Spanned<Effect>>,
@@ -136,7 +159,7 @@ struct DrumSpec {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct WallSpec {
-    segment: Option<[P; 2]>,
+    segment: Option<Exact<P, 2>>,
     /// A solid box (a fixed convex polygon).
     #[serde(rename = "box")]
     solid_box: Option<BoxSpec>,
@@ -269,7 +292,7 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         }
     }
     if let Some(g) = &file.gravity {
-        if !finite(g.get_ref()) {
+        if !finite(&g.get_ref()[..]) {
             return cx.err(g.span(), "gravity", "must be finite");
         }
         if effects.gravity.is_some() {
@@ -373,7 +396,7 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         // Every wall is built as (local shapes around a centre).
         let mut parts: Vec<(WallShape, DVec2)> = Vec::new();
         let segment_part = |a: DVec2, b: DVec2, c: DVec2| (WallShape::Segment { a: a - c, b: b - c }, c);
-        if let Some([a, b]) = spec.segment {
+        if let Some(Exact([a, b])) = spec.segment {
             if !finite(&[a[0], a[1], b[0], b[1]]) || v(a) == v(b) {
                 return cx.err(w.span(), field("segment"), "endpoints must be finite and distinct");
             }
@@ -419,7 +442,10 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
             parts.push(segment_part(br, tr, c));
         }
         if let Some(d) = &spec.drum {
-            if !(finite(&d.center) && d.radius.is_finite() && d.radius > 0.0 && (3..=MAX_DRUM_SIDES).contains(&d.sides))
+            if !(finite(&d.center[..])
+                && d.radius.is_finite()
+                && d.radius > 0.0
+                && (3..=MAX_DRUM_SIDES).contains(&d.sides))
             {
                 return cx.err(
                     w.span(),
@@ -482,7 +508,7 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
     for (k, g) in file.generate.iter().enumerate() {
         let spec = g.get_ref();
         let field = |f: &str| format!("generate[{k}].{f}");
-        let [r_min, r_max] = spec.radius;
+        let [r_min, r_max] = spec.radius.0;
         if !(r_min.is_finite() && r_max.is_finite() && r_min > 0.0 && r_min <= r_max) {
             return cx.err(g.span(), field("radius"), format!("[{r_min}, {r_max}] must satisfy 0 < r_min <= r_max"));
         }
@@ -660,17 +686,20 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
     if time.steps == 0 {
         return cx.err(file.time.span(), "time.steps", "must be >= 1");
     }
+    if let Some(o) = file.output.as_ref().filter(|o| o.get_ref().every == Some(0)) {
+        return cx.err(o.span(), "output.every", "must be >= 1 (`vtk = false` writes no VTK)");
+    }
+    if let Some(o) = file.output.as_ref().filter(|o| o.get_ref().picture_step == Some(0)) {
+        return cx.err(o.span(), "output.picture_step", "steps count from 1");
+    }
     let output = file.output.as_ref().map(|o| o.get_ref());
     let output = OutputSettings {
-        every: output.and_then(|o| o.every).unwrap_or(0),
+        every: output.and_then(|o| o.every).unwrap_or(1),
         vtk: output.and_then(|o| o.vtk).unwrap_or(false),
         picture_step: output.and_then(|o| o.picture_step),
     };
     Ok(Scene {
-        name: file
-            .name
-            .clone()
-            .unwrap_or_else(|| origin.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()),
+        name: super::scene_name(&cx, file.name.as_ref(), origin, "scene")?,
         description: file.description.clone().unwrap_or_default(),
         world,
         settings,

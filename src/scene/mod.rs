@@ -19,7 +19,7 @@ pub use punch_file::PunchScene;
 /// Where and how often a run writes its outputs.
 #[derive(Clone, Debug, Default)]
 pub struct OutputSettings {
-    /// Write VTK (and the state picture) every this many steps (0: only the last step).
+    /// With `vtk`, write VTK files every this many steps (≥ 1) and at the last.
     pub every: usize,
     pub vtk: bool,
     /// Step whose picture (grains and force chains) is written as PNG; `None`: the last step.
@@ -41,8 +41,9 @@ pub struct Scene {
 
 #[derive(Debug, Error)]
 pub enum SceneError {
-    #[error("{path}: cannot read the scene file: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}: cannot read the scene file: {cause}")]
+    /// (not a `source`: the message already holds it, and chains would print it twice)
+    Io { path: PathBuf, cause: std::io::Error },
     #[error("{path}: line {line}: {message}")]
     Syntax { path: PathBuf, line: usize, message: String },
     #[error("{path}: line {line}: {field}: {message}")]
@@ -66,6 +67,34 @@ pub fn load_any(path: &Path) -> Result<AnyScene, SceneError> {
     parse_any(&read(path)?, path)
 }
 
+/// A scene's `name` names its output directory under `out/`: it must be a plain file name, so
+/// that no scene writes outside that directory.
+fn check_name(name: &str) -> Result<(), String> {
+    let plain = !name.is_empty()
+        && name != "."
+        && name != ".."
+        && !name.contains(['/', '\\', ':'])
+        && !name.chars().any(char::is_control);
+    if plain {
+        Ok(())
+    } else {
+        Err(format!("{name:?} is not a plain file name (it names the output directory out/<name>)"))
+    }
+}
+
+/// The scene's name: the file's `name`, checked, else the file's stem.
+fn scene_name(
+    cx: &Ctx,
+    name: Option<&toml::Spanned<String>>,
+    origin: &Path,
+    fallback: &str,
+) -> Result<String, SceneError> {
+    match name {
+        Some(n) => check_name(n.get_ref()).map(|_| n.get_ref().clone()).or_else(|m| cx.err(n.span(), "name", m)),
+        None => Ok(origin.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| fallback.into())),
+    }
+}
+
 /// Builds a scene of either kind from TOML text; `origin` names it in errors.
 pub fn parse_any(text: &str, origin: &Path) -> Result<AnyScene, SceneError> {
     if punch_table_line(text).is_some() {
@@ -75,7 +104,7 @@ pub fn parse_any(text: &str, origin: &Path) -> Result<AnyScene, SceneError> {
 }
 
 fn read(path: &Path) -> Result<String, SceneError> {
-    std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })
+    std::fs::read_to_string(path).map_err(|cause| SceneError::Io { path: path.to_path_buf(), cause })
 }
 
 /// Line of the `[punch]` table when the text is a structural scene.

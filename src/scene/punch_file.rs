@@ -14,7 +14,7 @@ use crate::structure::{Elastic, PunchGeometry, PunchModel};
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct PunchFile {
-    name: Option<String>,
+    name: Option<Spanned<String>>,
     description: Option<String>,
     punch: Spanned<PunchSpec>,
     solver: Option<Spanned<SolverSpec>>,
@@ -108,9 +108,7 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<PunchScene, SceneError>
     }
     let out = file.output.as_ref().map(|o| o.get_ref());
     Ok(PunchScene {
-        name: file.name.unwrap_or_else(|| {
-            origin.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "punch".into())
-        }),
+        name: super::scene_name(&cx, file.name.as_ref(), origin, "punch")?,
         description: file.description.unwrap_or_default(),
         model,
         solver,

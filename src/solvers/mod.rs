@@ -91,17 +91,18 @@ pub enum Ordering {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum StopCriterion {
-    /// The natural-map residual (notes §7.1) is at most `tol`.
+    /// The relative natural-map residual |r − proj_cone(r − u)| is at most `tol`.
     Natural,
-    /// LMGC90's `Quad` test (RMS of local velocity changes, notes §3.2).
+    /// LMGC90's `Quad` test (RMS of local velocity changes).
     Quad,
     /// LMGC90's `Maxm` test (every contact).
     Maxm,
     /// LMGC90's `QM/16` compromise.
     Qm16,
     /// Every contact's residual in velocity units is at most `tol` times the largest free
-    /// velocity ([`crate::problem::residual::velocity_error`]): for simulations, where the 2-norm
-    /// error lets one contact violate Signorini (and overlap) while the rest converge.
+    /// velocity: for simulations, where the 2-norm error lets one contact violate Signorini
+    /// (and overlap) while the rest converge.
+    // (computed by `problem::residual::velocity_error`)
     Velocity,
 }
 

@@ -1,7 +1,10 @@
-//! Moreau–Jean time stepping (notes §1): predict, detect, build the matrix-free contact problem
-//! of the step, solve it warm-started, update. [`Simulation`] is the library API a host code drives.
+//! Moreau–Jean time stepping (notes §1): detect, build the matrix-free contact problem of the
+//! step, solve it warm-started, update, project what the update pushed in; checks of the start
+//! and of every step's state. [`Simulation`] is the library API a host code drives.
 
+mod checks;
 mod moreau_jean;
+mod projection;
 mod simulation;
 mod warm_start;
 

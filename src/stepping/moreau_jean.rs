@@ -1,21 +1,30 @@
-//! One Moreau–Jean θ-step (notes §1, LMGC90's `increment`/`comp_free_vlocy`/`comp_dof`):
-//! 1. predict X̃ = X + θ h V and detect contacts there (gap g, frame, alert distance);
+//! One Moreau–Jean θ-step (notes §1, LMGC90's `increment`/`comp_free_vlocy`/`comp_dof`), as
+//! the stages [`step`] lists:
+//! 1. detect at the start of the step every pair that can meet within it (alert widened by each
+//!    body's and wall's travel), so each contact keeps the normal it has before any crossing;
 //! 2. free velocity v_free = v + h g;
-//! 3. local problem u = W r + q, q = B v_free − (wall velocity) + max(0, g/h) on the normal row,
+//! 3. local problem u = W r + q, q = B v_free − (wall velocity) + max(0, g̃/h) on the normal row
+//!    with g̃ = g + θ h u_n⁻ the gap at the predicted configuration X + θ h V (LMGC90 detects
+//!    there; carried linearly here so that a fast pair cannot pass through the surface),
 //!    + e u_n⁻ for impacts when restitution is on; cohesion c shifts the cone (r_n ≥ −c);
-//! 4. solve it warm-started; 5. v⁺ = v_free + M⁻¹ Bᵀ r, X⁺ = X + h((1−θ) v + θ v⁺).
+//! 4. solve it warm-started; 5. v⁺ = v_free + M⁻¹ Bᵀ r, X⁺ = X + h((1−θ) v + θ v⁺);
+//! 6. project positions: a contact that the θ-update leaves deeper than it started (a pair
+//!    meeting early in the step at θ < 1) is moved back to its surface along M⁻¹ Bᵀ, velocities
+//!    unchanged (Acary's combined projection, as in Siconos' `MoreauJeanCombinedProjectionOSI`).
 
 use std::time::Instant;
 
 use glam::DVec2;
 
+use super::checks::check_state;
+use super::projection::{end_of_step_gaps, project_positions, targets};
 use super::simulation::{ContactState, Simulation, StepError, StepReport};
-use crate::detection::{Antagonist, Configuration, DetectedContact};
+use crate::detection::{Antagonist, Configuration, DetectedContact, Detector};
 use crate::problem::cone::status_of;
 use crate::problem::matrix_free::Dofs;
 use crate::problem::{Body, Contact, ContactProblem, Delassus, MatrixFree};
-
-use crate::world::World;
+use crate::solvers::StopReason;
+use crate::world::{Wall, World};
 
 /// Generalised velocity vector ([`Dofs::per_body`] entries per body) of the bodies' velocities.
 fn stacked_velocities(world: &World, dofs: Dofs) -> Vec<f64> {
@@ -32,13 +41,8 @@ fn stacked_velocities(world: &World, dofs: Dofs) -> Vec<f64> {
     v
 }
 
-/// The matrix-free operator of the detected contacts.
-fn operator(
-    world: &World,
-    predicted: &[DVec2],
-    contacts: &[DetectedContact],
-    dofs: Dofs,
-) -> Result<MatrixFree, String> {
+/// The matrix-free operator of the detected contacts, levers taken at `position`.
+fn operator(world: &World, position: &[DVec2], contacts: &[DetectedContact], dofs: Dofs) -> Result<MatrixFree, String> {
     let b = &world.bodies;
     let bodies: Vec<Body> = (0..b.len())
         .map(|k| Body { inv_mass: b.inv_mass[k], inv_inertia: if dofs.rotation { b.inv_inertia[k] } else { 0.0 } })
@@ -47,24 +51,27 @@ fn operator(
         .iter()
         .map(|c| {
             let (j, lever_j) = match c.other {
-                Antagonist::Body(j) => (Some(j), (c.point - predicted[j]).to_array()),
+                Antagonist::Body(j) => (Some(j), (c.point - position[j]).to_array()),
                 Antagonist::Wall(_) => (None, [0.0; 2]),
             };
-            Contact { i: c.i, j, normal: c.normal.to_array(), lever_i: (c.point - predicted[c.i]).to_array(), lever_j }
+            Contact { i: c.i, j, normal: c.normal.to_array(), lever_i: (c.point - position[c.i]).to_array(), lever_j }
         })
         .collect();
     MatrixFree::with_dofs(bodies, &rows, dofs)
 }
 
-/// How far each body and each wall can move within the step (speed × h), so that detection
-/// widens the alert distance of exactly the pairs that could close. Open contacts cost nothing
-/// in the solution: their gap term keeps them inactive unless they would close within the step.
+/// How far each body and each wall can move within the step (speed × h, gravity included), so
+/// that detection widens the alert distance of exactly the pairs that could close. Open
+/// contacts cost nothing in the solution: their gap term keeps them inactive unless they would
+/// close within the step. A body the solve sets moving faster (a grain kicked by another) is
+/// caught by [`outran_reach`], and the end of the step is detected again.
 fn step_reach(world: &World, h: f64) -> (Vec<f64>, Vec<f64>) {
     let b = &world.bodies;
+    let fall = world.effects.gravity.map_or(0.0, |g| h * g.length());
     let bodies = (0..b.len())
         .map(|k| {
             let spin = if b.has_rotation() { b.spin[k].abs() * b.bounding_radius[k] } else { 0.0 };
-            h * (b.velocity[k].length() + spin)
+            h * (b.velocity[k].length() + fall + spin)
         })
         .collect();
     let walls = world
@@ -78,69 +85,29 @@ fn step_reach(world: &World, h: f64) -> (Vec<f64>, Vec<f64>) {
     (bodies, walls)
 }
 
-/// Largest overlap at the end of the step, from the detection gaps moved to first order by the
-/// displacement since the predicted configuration (`B ΔX`, less the walls' own motion).
-fn end_of_step_penetration(
+/// Contacts of the step, detected at the start-of-step configuration: every pair that can come
+/// within the alert distance during the step, with its gap, normal and point there.
+fn detect(
+    detector: &mut Detector,
     world: &World,
-    op: &MatrixFree,
-    predicted: &[DVec2],
-    predicted_angle: &[f64],
-    contacts: &[DetectedContact],
-    predicted_walls: &[crate::world::Wall],
-    wall_time_left: f64,
-) -> f64 {
+    alert: f64,
+    (reach, wall_reach): (&[f64], &[f64]),
+) -> Vec<DetectedContact> {
     let b = &world.bodies;
-    let s = op.dofs().per_body();
-    let mut dx = vec![0.0; s * b.len()];
-    for k in 0..b.len() {
-        let d = b.position[k] - predicted[k];
-        dx[s * k] = d.x;
-        dx[s * k + 1] = d.y;
-        if s == 3 {
-            dx[s * k + 2] = b.angle[k] - predicted_angle[k];
-        }
-    }
-    let mut dg = vec![0.0; 2 * contacts.len()];
-    op.contact_velocities(&dx, &mut dg);
-    let mut worst = 0.0f64;
-    for (a, c) in contacts.iter().enumerate() {
-        let mut gap = c.gap + dg[2 * a];
-        if let Antagonist::Wall(w) = c.other {
-            gap -= c.normal.dot(wall_time_left * predicted_walls[w].velocity_at(c.point));
-        }
-        worst = worst.max(-gap);
-    }
-    worst
-}
-
-pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
-    let start = Instant::now();
-    let (h, theta) = (sim.settings.h, sim.settings.theta);
-    let step = sim.step_index + 1;
-    let world = &mut sim.world;
-    let effects = world.effects;
-    let dofs = Dofs { rotation: effects.rotation, friction: effects.friction };
-
-    // 1. Predicted configuration and detection.
-    let b = &world.bodies;
-    let predicted: Vec<DVec2> = (0..b.len()).map(|k| b.position[k] + theta * h * b.velocity[k]).collect();
-    let predicted_angle: Vec<f64> =
-        if effects.rotation { (0..b.len()).map(|k| b.angle[k] + theta * h * b.spin[k]).collect() } else { Vec::new() };
-    let mut walls = world.walls.clone();
-    walls.iter_mut().for_each(|w| w.advance(theta * h));
-    let config = Configuration { position: &predicted, angle: &predicted_angle };
-    let (reach, wall_reach) = step_reach(world, h);
-    let mut detected = sim.detector.detect(b, &config, &walls, sim.settings.alert, &reach, &wall_reach);
+    let config = Configuration { position: &b.position, angle: &b.angle };
+    let mut detected = detector.detect(b, &config, &world.walls, alert, reach, wall_reach);
     detected.retain(|c| match c.other {
         Antagonist::Body(j) => b.inv_mass[c.i] > 0.0 || b.inv_mass[j] > 0.0,
         Antagonist::Wall(_) => b.inv_mass[c.i] > 0.0,
     });
-    let detection_seconds = start.elapsed().as_secs_f64();
+    detected
+}
 
-    // 2. Free velocity.
+/// Velocities at the start of the step, and free velocities (gravity over the step).
+fn free_velocities(world: &World, dofs: Dofs, h: f64) -> (Vec<f64>, Vec<f64>) {
     let v_begin = stacked_velocities(world, dofs);
     let mut v_free = v_begin.clone();
-    if let Some(g) = effects.gravity {
+    if let Some(g) = world.effects.gravity {
         let s = dofs.per_body();
         for k in 0..world.bodies.len() {
             if world.bodies.inv_mass[k] > 0.0 {
@@ -149,143 +116,74 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
             }
         }
     }
+    (v_begin, v_free)
+}
 
-    let nc = detected.len();
-    let mut report = StepReport {
-        step,
-        time: sim.time + h,
-        contacts: nc,
-        warm_started: 0,
-        iterations: 0,
-        error: 0.0,
-        converged: true,
-        stop: crate::solvers::StopReason::Converged,
-        stop_reason: "no contact".into(),
-        gpu_dispatches: 0,
-        gpu_bytes: 0,
-        max_penetration: 0.0,
-        kinetic_energy: 0.0,
-        potential_energy: 0.0,
-        seconds: 0.0,
-        detection_seconds,
-        solve_seconds: 0.0,
-    };
-    let mut v_end = v_free.clone();
-    let mut step_problem = None;
-    if nc > 0 {
-        // 3. The local problem.
-        let op =
-            operator(world, &predicted, &detected, dofs).map_err(|message| StepError::Problem { step, message })?;
-        let mut q = vec![0.0; 2 * nc];
-        op.contact_velocities(&v_free, &mut q);
-        let mut u_begin = Vec::new();
-        if effects.restitution {
-            u_begin = vec![0.0; 2 * nc];
-            op.contact_velocities(&v_begin, &mut u_begin);
-        }
-        let mats = &world.materials;
-        let mut mu = vec![0.0; nc];
-        let mut shift = Vec::new();
-        if effects.cohesion {
-            shift = vec![0.0; 2 * nc];
-        }
-        for (a, c) in detected.iter().enumerate() {
-            let (other_material, wall_velocity) = match c.other {
-                Antagonist::Body(j) => (world.bodies.material[j] as usize, DVec2::ZERO),
-                Antagonist::Wall(w) => {
-                    (walls[w].material, if effects.moving_walls { walls[w].velocity_at(c.point) } else { DVec2::ZERO })
-                }
-            };
-            let law = mats.interaction(world.bodies.material[c.i] as usize, other_material);
-            let (n, t) = (c.normal, c.normal.perp());
-            q[2 * a] -= n.dot(wall_velocity);
-            if effects.friction {
-                q[2 * a + 1] -= t.dot(wall_velocity);
-                mu[a] = law.friction;
+/// The step's contact problem, in cohesion-shifted impulses r' = r + c e_n (`shift`, empty
+/// without cohesion), and the warm start `r0` moved the same way.
+fn local_problem(
+    world: &World,
+    op: MatrixFree,
+    contacts: &[DetectedContact],
+    (v_begin, v_free): (&[f64], &[f64]),
+    (h, theta): (f64, f64),
+    r0: &mut [f64],
+) -> Result<(ContactProblem, Vec<f64>), String> {
+    let effects = world.effects;
+    let nc = contacts.len();
+    let mut q = vec![0.0; 2 * nc];
+    op.contact_velocities(v_free, &mut q);
+    let mut u_begin = vec![0.0; 2 * nc];
+    op.contact_velocities(v_begin, &mut u_begin);
+    let mut mu = vec![0.0; nc];
+    let mut shift = if effects.cohesion { vec![0.0; 2 * nc] } else { Vec::new() };
+    for (a, c) in contacts.iter().enumerate() {
+        let (other_material, wall_velocity) = match c.other {
+            Antagonist::Body(j) => (world.bodies.material[j] as usize, DVec2::ZERO),
+            Antagonist::Wall(w) => {
+                let wall = &world.walls[w];
+                (wall.material, if effects.moving_walls { wall.velocity_at(c.point) } else { DVec2::ZERO })
             }
-            // Newton's impact law for a contact that closes within this step, u_n⁺ ≥ −e u_n⁻;
-            // otherwise the gap term: an open contact acts only if it would close within the step.
-            let approach =
-                if effects.restitution && law.restitution > 0.0 { u_begin[2 * a] - n.dot(wall_velocity) } else { 0.0 };
-            if approach < 0.0 && c.gap + h * approach <= 0.0 {
-                q[2 * a] += law.restitution * approach;
-            } else if c.gap > 0.0 {
-                q[2 * a] += c.gap / h;
-            }
-            if effects.cohesion {
-                shift[2 * a] = law.cohesion;
-            }
+        };
+        let law = world.materials.interaction(world.bodies.material[c.i] as usize, other_material);
+        let (n, t) = (c.normal, c.normal.perp());
+        q[2 * a] -= n.dot(wall_velocity);
+        if effects.friction {
+            q[2 * a + 1] -= t.dot(wall_velocity);
+            mu[a] = law.friction;
         }
-        let (mut r0, warm) = sim.warm_start.initial_impulses(&detected);
-        report.warm_started = warm;
-        // Cohesion: solve for r' = r + c e_n in the plain cone, q' = q − W c e_n.
-        if effects.cohesion {
-            let mut ws = vec![0.0; 2 * nc];
-            op.apply(&shift, &mut ws);
-            for k in 0..2 * nc {
-                q[k] -= ws[k];
-                r0[k] += shift[k];
-            }
-        }
-        let problem = ContactProblem::new(Delassus::MatrixFree(op), q, mu)
-            .map_err(|e| StepError::Problem { step, message: e.to_string() })?;
-        // 4. Solve.
-        let solve_start = Instant::now();
-        let solved = sim
-            .backend
-            .solve(&problem, sim.settings.solver, &sim.settings.options, Some(&r0))
-            .map_err(|e| StepError::Device { step, message: e.to_string() })?;
-        report.solve_seconds = solve_start.elapsed().as_secs_f64();
-        report.iterations = solved.iterations;
-        report.error = solved.error;
-        report.converged = solved.converged;
-        report.stop = solved.stop;
-        (report.gpu_dispatches, report.gpu_bytes) = (solved.gpu_dispatches, solved.gpu_bytes);
-        report.stop_reason = solved.stop_reason.clone();
-        let mut r = solved.r;
-        if r.iter().any(|x| !x.is_finite()) {
-            return Err(StepError::Diverged {
-                step,
-                message: format!("the {} solve returned non-finite impulses", sim.settings.solver.name()),
-            });
+        // Newton's impact law for a contact that closes within this step, u_n⁺ ≥ −e u_n⁻;
+        // otherwise the gap term: an open contact acts only if it would close within the step.
+        let approach = u_begin[2 * a] - n.dot(wall_velocity);
+        let predicted_gap = c.gap + theta * h * approach;
+        if effects.restitution && law.restitution > 0.0 && approach < 0.0 && c.gap + h * approach <= 0.0 {
+            q[2 * a] += law.restitution * approach;
+        } else if predicted_gap > 0.0 {
+            q[2 * a] += predicted_gap / h;
         }
         if effects.cohesion {
-            for k in 0..2 * nc {
-                r[k] -= shift[k];
-            }
+            shift[2 * a] = law.cohesion;
         }
-        sim.warm_start.remember(&detected, &r);
-        // 5. Velocity update.
-        let Delassus::MatrixFree(op) = &problem.w else { unreachable!("the step builds a matrix-free problem") };
-        let dv = op.body_velocities(&r);
-        for (v, d) in v_end.iter_mut().zip(&dv) {
-            *v += d;
-        }
-        let mu = &problem.mu;
-        sim.contacts = detected
-            .iter()
-            .enumerate()
-            .map(|(a, c)| {
-                let imp = [r[2 * a], r[2 * a + 1]];
-                let shifted = [imp[0] + if effects.cohesion { shift[2 * a] } else { 0.0 }, imp[1]];
-                ContactState { contact: *c, impulse: imp, status: status_of(shifted, mu[a]) }
-            })
-            .collect();
-        step_problem = Some(problem);
-    } else {
-        sim.warm_start.remember(&[], &[]);
-        sim.contacts.clear();
     }
+    // Cohesion: solve for r' = r + c e_n in the plain cone, q' = q − W c e_n.
+    if effects.cohesion {
+        let mut ws = vec![0.0; 2 * nc];
+        op.apply(&shift, &mut ws);
+        for k in 0..2 * nc {
+            q[k] -= ws[k];
+            r0[k] += shift[k];
+        }
+    }
+    let problem = ContactProblem::new(Delassus::MatrixFree(op), q, mu).map_err(|e| e.to_string())?;
+    Ok((problem, shift))
+}
 
-    // Position update.
+/// v⁺ and X⁺ = X + h((1−θ) v + θ v⁺) of every body; the walls advance by h.
+fn update_bodies(world: &mut World, v_end: &[f64], dofs: Dofs, (h, theta): (f64, f64)) {
     let s = dofs.per_body();
-    let world = &mut sim.world;
     let bodies = &mut world.bodies;
     for k in 0..bodies.len() {
         let v_new = DVec2::new(v_end[s * k], v_end[s * k + 1]);
-        if !v_new.is_finite() {
-            return Err(StepError::Diverged { step, message: format!("body {k} has a non-finite velocity") });
-        }
         bodies.position[k] += h * ((1.0 - theta) * bodies.velocity[k] + theta * v_new);
         bodies.velocity[k] = v_new;
         if dofs.rotation {
@@ -295,18 +193,183 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
         }
     }
     world.walls.iter_mut().for_each(|w| w.advance(h));
-    if let Some(problem) = step_problem {
-        let Delassus::MatrixFree(op) = &problem.w else { unreachable!("the step builds a matrix-free problem") };
-        report.max_penetration =
-            end_of_step_penetration(world, op, &predicted, &predicted_angle, &detected, &walls, h * (1.0 - theta));
-        if sim.keep_problem {
-            sim.last_problem = Some(problem);
+}
+
+/// The state a failed step goes back to.
+struct Snapshot {
+    position: Vec<DVec2>,
+    velocity: Vec<DVec2>,
+    angle: Vec<f64>,
+    spin: Vec<f64>,
+    walls: Vec<Wall>,
+}
+
+impl Snapshot {
+    fn of(world: &World) -> Self {
+        let b = &world.bodies;
+        Self {
+            position: b.position.clone(),
+            velocity: b.velocity.clone(),
+            angle: b.angle.clone(),
+            spin: b.spin.clone(),
+            walls: world.walls.clone(),
         }
+    }
+
+    fn restore(&self, world: &mut World) {
+        let b = &mut world.bodies;
+        b.position.clone_from(&self.position);
+        b.velocity.clone_from(&self.velocity);
+        b.angle.clone_from(&self.angle);
+        b.spin.clone_from(&self.spin);
+        world.walls.clone_from(&self.walls);
+    }
+}
+
+/// Does a body end the step farther than detection allowed for (its reach plus half the alert
+/// distance)? Then a pair of bodies may have met unseen within the step.
+fn outran_reach(before: &Snapshot, world: &World, alert: f64, reach: &[f64]) -> bool {
+    let b = &world.bodies;
+    (0..b.len()).any(|k| {
+        let turn = match (before.angle.get(k), b.angle.get(k)) {
+            (Some(a0), Some(a1)) => (a1 - a0).abs() * b.bounding_radius[k],
+            _ => 0.0,
+        };
+        b.position[k].distance(before.position[k]) + turn > reach[k] + 0.5 * alert
+    })
+}
+
+/// One step: the stages listed at the top of this file; a new state that is not finite or runs
+/// away is undone.
+pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
+    let start = Instant::now();
+    let (h, theta, alert) = (sim.settings.h, sim.settings.theta, sim.settings.alert);
+    let step = sim.step_index + 1;
+    let effects = sim.world.effects;
+    let dofs = Dofs { rotation: effects.rotation, friction: effects.friction };
+    let extent = sim.extent();
+    let before = Snapshot::of(&sim.world);
+
+    // 1. Detection at the start of the step.
+    let reach = step_reach(&sim.world, h);
+    let detected = detect(&mut sim.detector, &sim.world, alert, (&reach.0, &reach.1));
+    let mut detection_seconds = start.elapsed().as_secs_f64();
+    // 2. Free velocities.
+    let (v_begin, v_free) = free_velocities(&sim.world, dofs, h);
+    let nc = detected.len();
+    let mut report = StepReport {
+        step,
+        time: sim.time + h,
+        contacts: nc,
+        warm_started: 0,
+        iterations: 0,
+        error: 0.0,
+        converged: true,
+        stop: StopReason::Converged,
+        stop_reason: "no contact".into(),
+        gpu_dispatches: 0,
+        gpu_bytes: 0,
+        missed: 0,
+        projected: 0,
+        max_penetration: 0.0,
+        kinetic_energy: 0.0,
+        potential_energy: 0.0,
+        seconds: 0.0,
+        detection_seconds,
+        solve_seconds: 0.0,
+    };
+    let mut v_end = v_free.clone();
+    let (mut impulses, mut shift, mut problem) = (Vec::new(), Vec::new(), None);
+    if nc > 0 {
+        // 3. The local problem.
+        let world = &sim.world;
+        let op = operator(world, &world.bodies.position, &detected, dofs)
+            .map_err(|message| StepError::Problem { step, message })?;
+        let (mut r0, warm) = sim.warm_start.initial_impulses(&detected);
+        report.warm_started = warm;
+        let local;
+        (local, shift) = local_problem(world, op, &detected, (&v_begin, &v_free), (h, theta), &mut r0)
+            .map_err(|message| StepError::Problem { step, message })?;
+        // 4. Solve.
+        let solve_start = Instant::now();
+        let solved = sim
+            .backend
+            .solve(&local, sim.settings.solver, &sim.settings.options, Some(&r0))
+            .map_err(|e| StepError::Device { step, message: e.to_string() })?;
+        report.solve_seconds = solve_start.elapsed().as_secs_f64();
+        report.iterations = solved.iterations;
+        report.error = solved.error;
+        report.converged = solved.converged;
+        report.stop = solved.stop;
+        (report.gpu_dispatches, report.gpu_bytes) = (solved.gpu_dispatches, solved.gpu_bytes);
+        report.stop_reason = solved.stop_reason.clone();
+        impulses = solved.r;
+        if impulses.iter().any(|x| !x.is_finite()) {
+            return Err(StepError::Diverged {
+                step,
+                message: format!("the {} solve returned non-finite impulses", sim.settings.solver.name()),
+            });
+        }
+        for (r, c) in impulses.iter_mut().zip(&shift) {
+            *r -= c;
+        }
+        let Delassus::MatrixFree(op) = &local.w else { unreachable!("the step builds a matrix-free problem") };
+        for (v, d) in v_end.iter_mut().zip(op.body_velocities(&impulses)) {
+            *v += d;
+        }
+        problem = Some(local);
+    }
+
+    // 5. Update, then 6. projection of what the θ-update pushed in: on the start's contacts
+    // moved to first order, or, when a grain was kicked beyond its reach, on the contacts
+    // detected at the end of the step (those the start missed must not overlap at all).
+    update_bodies(&mut sim.world, &v_end, dofs, (h, theta));
+    if let Some(problem) = &problem {
+        let Delassus::MatrixFree(op) = &problem.w else { unreachable!("the step builds a matrix-free problem") };
+        if outran_reach(&before, &sim.world, alert, &reach.0) {
+            let again = Instant::now();
+            let end = detect(&mut sim.detector, &sim.world, alert, (&[], &[]));
+            detection_seconds += again.elapsed().as_secs_f64();
+            let (target, missed) = targets(&end, &detected);
+            report.missed = missed;
+            let end_op = operator(&sim.world, &sim.world.bodies.position, &end, dofs)
+                .map_err(|message| StepError::Problem { step, message })?;
+            let mut gaps: Vec<f64> = end.iter().map(|c| c.gap).collect();
+            report.projected = project_positions(&mut sim.world, &end_op, &end, &mut gaps, &target, report.iterations);
+            report.max_penetration = gaps.iter().fold(0.0, |m, g| m.max(-g));
+        } else {
+            let start = (before.position.as_slice(), before.angle.as_slice());
+            let mut gaps = end_of_step_gaps(op, &detected, &before.walls, start, &sim.world, h);
+            let target: Vec<f64> = detected.iter().map(|c| c.gap.min(0.0)).collect();
+            report.projected = project_positions(&mut sim.world, op, &detected, &mut gaps, &target, report.iterations);
+            report.max_penetration = gaps.iter().fold(0.0, |m, g| m.max(-g));
+        }
+    }
+    if let Err(message) = check_state(&before.position, &sim.world, extent) {
+        before.restore(&mut sim.world);
+        return Err(StepError::Diverged { step, message });
+    }
+    sim.warm_start.remember(&detected, &impulses);
+    sim.contacts = match &problem {
+        None => Vec::new(),
+        Some(problem) => detected
+            .iter()
+            .enumerate()
+            .map(|(a, c)| {
+                let imp = [impulses[2 * a], impulses[2 * a + 1]];
+                let shifted = [imp[0] + shift.get(2 * a).copied().unwrap_or(0.0), imp[1]];
+                ContactState { contact: *c, impulse: imp, status: status_of(shifted, problem.mu[a]) }
+            })
+            .collect(),
+    };
+    if sim.keep_problem {
+        sim.last_problem = problem;
     }
     sim.time += h;
     sim.step_index = step;
-    report.kinetic_energy = world.kinetic_energy();
-    report.potential_energy = world.potential_energy();
+    report.detection_seconds = detection_seconds;
+    report.kinetic_energy = sim.world.kinetic_energy();
+    report.potential_energy = sim.world.potential_energy();
     report.seconds = start.elapsed().as_secs_f64();
     Ok(report)
 }

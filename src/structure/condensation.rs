@@ -265,6 +265,18 @@ pub struct PunchSolution {
 }
 
 impl PunchSolution {
+    /// Contact nodes judged closed. An iterate meets `min(z, w) = 0` only to its tolerance, so
+    /// an open node carries a force of the order of tol and a closed one a gap of that order: a
+    /// node is closed when its force, relative to the largest force, exceeds its gap relative
+    /// to the largest gap, whatever the solver and its tolerance.
+    pub fn closed_nodes(&self) -> Vec<usize> {
+        let largest = |x: &[f64]| x.iter().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+        let (gap_scale, force_scale) = (largest(&self.z), largest(&self.w));
+        (0..self.w.len()).filter(|&k| self.w[k] / force_scale > self.z[k].max(0.0) / gap_scale).collect()
+    }
+}
+
+impl PunchSolution {
     /// Total contact force (the integral of the contact pressure).
     pub fn contact_force(&self) -> f64 {
         self.w.iter().sum()

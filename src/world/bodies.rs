@@ -145,7 +145,8 @@ impl Bodies {
         self.rotation
     }
 
-    /// Adds a body of the given density; returns its index or says what is wrong with it.
+    /// Adds a body of the given density; returns its index or says what is wrong with it
+    /// (a polygon must be convex, its vertices in either order).
     pub fn add(&mut self, spec: &BodySpec, density: f64) -> Result<usize, String> {
         let finite = |v: DVec2| v.x.is_finite() && v.y.is_finite();
         if !finite(spec.center) || !finite(spec.velocity) || !spec.angle.is_finite() || !spec.spin.is_finite() {
@@ -177,6 +178,7 @@ impl Bodies {
                         "degenerate polygon: its vertices lie within {span:e} m of each other (at least {needed:e} m needed)"
                     ));
                 }
+                check_convex(vertices)?;
                 let pts: Vec<_> = vertices.iter().map(|v| parry2d::math::Vector::new(v.x as f32, v.y as f32)).collect();
                 let hull = ConvexPolygon::from_convex_hull(&pts).ok_or_else(|| {
                     "degenerate polygon: its vertices have no convex hull of positive area".to_string()
@@ -197,6 +199,13 @@ impl Bodies {
             }
         };
         let (mass, inertia) = if spec.fixed { (0.0, 0.0) } else { (density * area, density * second_moment) };
+        let representable = |x: f64| x.is_finite() && x > 0.0 && (1.0 / x).is_finite();
+        if !spec.fixed && !(representable(mass) && (!self.rotation || representable(inertia))) {
+            return Err(format!(
+                "its mass {mass:e} or moment of inertia {inertia:e} (density {density:e} × its size {bounding:e} m) \
+                 is beyond f64: scale the lengths or the density"
+            ));
+        }
         self.shape.push(shape);
         self.position.push(center);
         self.velocity.push(if spec.fixed { DVec2::ZERO } else { spec.velocity });
@@ -291,4 +300,35 @@ impl Bodies {
             + self.material.capacity() * 2
             + self.tag.capacity() * 4
     }
+}
+
+/// Refuses vertices that do not go once around a convex polygon, in either orientation: a
+/// concave or self-intersecting outline would otherwise be silently replaced by its hull.
+fn check_convex(vertices: &[DVec2]) -> Result<(), String> {
+    let n = vertices.len();
+    let (mut orientation, mut turning) = (0.0f64, 0.0f64);
+    for k in 0..n {
+        let (a, b, c) = (vertices[k], vertices[(k + 1) % n], vertices[(k + 2) % n]);
+        let (e1, e2) = (b - a, c - b);
+        if e1 == DVec2::ZERO || e2 == DVec2::ZERO {
+            continue;
+        }
+        let cross = e1.perp_dot(e2);
+        turning += cross.atan2(e1.dot(e2));
+        if cross.abs() > 1e-9 * e1.length() * e2.length() {
+            if orientation == 0.0 {
+                orientation = cross.signum();
+            } else if cross.signum() != orientation {
+                return Err(format!(
+                    "polygon is not convex: it turns the other way at vertex {} (split a concave grain into convex ones)",
+                    (k + 1) % n
+                ));
+            }
+        }
+    }
+    let windings = turning.abs() / std::f64::consts::TAU;
+    if (windings - 1.0).abs() > 1e-6 {
+        return Err(format!("polygon's edges cross each other: its outline winds {windings:.0} times around"));
+    }
+    Ok(())
 }

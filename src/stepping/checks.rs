@@ -1,0 +1,167 @@
+//! What a world must satisfy to be stepped, and what every step's new state must satisfy:
+//! scenes that cannot be integrated are refused up front, suspicious starts are warned about,
+//! and a step whose state is not finite or runs away is undone and reported.
+
+use glam::DVec2;
+
+use crate::detection::{Antagonist, Configuration, Detector};
+use crate::world::World;
+
+/// f64 positions must resolve this fraction of the smallest grain radius.
+const RESOLUTION: f64 = 1e-6;
+
+/// A body that moves farther than this many scene extents in one step has run away.
+const RUNAWAY: f64 = 1e3;
+
+/// Diagonal of the bounds of bodies and walls, at least the largest grain's diameter.
+pub fn extent(world: &World) -> f64 {
+    if world.bodies.is_empty() && world.walls.is_empty() {
+        return 0.0;
+    }
+    let (lo, hi) = world.bounds();
+    let largest = world.bodies.bounding_radius.iter().fold(0.0f64, |m, r| m.max(2.0 * r));
+    (hi - lo).length().max(largest)
+}
+
+/// Refuses a world that cannot be stepped with time step `h` (say why, naming the body);
+/// returns warnings about its start (grains outside the walls, in a wall, on top of each other).
+pub fn check_start(world: &World, h: f64) -> Result<Vec<String>, String> {
+    let b = &world.bodies;
+    let dynamic = || (0..b.len()).filter(|&k| b.inv_mass[k] > 0.0);
+    // Gaps are differences of positions: f64 must resolve a small fraction of a grain there.
+    let far = (0..b.len())
+        .map(|k| b.position[k].abs().max_element() + b.bounding_radius[k])
+        .chain(world.walls.iter().flat_map(|w| w.world_points()).map(|p| p.abs().max_element()))
+        .fold(0.0, f64::max);
+    if let Some(smallest) = b.bounding_radius.iter().copied().reduce(f64::min) {
+        if far * f64::EPSILON > RESOLUTION * smallest {
+            return Err(format!(
+                "coordinates reach {far:.3e} m, where f64 resolves {:.1e} m, more than {RESOLUTION:e} of the smallest \
+                 grain radius ({smallest:.3e} m): move the scene nearer the origin or scale it",
+                far * f64::EPSILON
+            ));
+        }
+    }
+    for k in dynamic() {
+        let energy = 0.5 * b.mass[k] * b.velocity[k].length_squared();
+        if !energy.is_finite() {
+            return Err(format!(
+                "body {k}: its kinetic energy overflows f64 (mass {:e}, velocity {:?})",
+                b.mass[k],
+                b.velocity[k].to_array()
+            ));
+        }
+    }
+    let mut warnings = Vec::new();
+    let size = extent(world);
+    let gravity = world.effects.gravity.map_or(0.0, |g| g.length());
+    let travel = |k: usize| h * b.velocity[k].length() + h * h * gravity;
+    if let Some(k) = dynamic().max_by(|&i, &j| travel(i).total_cmp(&travel(j))) {
+        if travel(k) > size {
+            let what = format!(
+                "in one step (h = {h:e} s) body {k} moves {:.3e} m, farther than across the whole scene ({size:.3e} m)",
+                travel(k)
+            );
+            if !world.walls.is_empty() {
+                return Err(format!("{what}: the walls cannot hold it; take a smaller time step"));
+            }
+            warnings.push(format!("{what}: take a smaller time step unless it is a free flight"));
+        }
+    }
+    warnings.extend(start_overlaps(world));
+    Ok(warnings)
+}
+
+/// Grains outside the walls' bounds, inside a wall, or on top of another grain at the start.
+fn start_overlaps(world: &World) -> Vec<String> {
+    let b = &world.bodies;
+    let mut warnings = Vec::new();
+    if !world.walls.is_empty() {
+        let (mut lo, mut hi) = world
+            .walls
+            .iter()
+            .map(|w| w.aabb())
+            .fold((DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)), |(lo, hi), (a, c)| {
+                (lo.min(a), hi.max(c))
+            });
+        // Walls hold grains against gravity: above a floor, or over an open top, is inside.
+        if let Some(g) = world.effects.gravity {
+            let up = -g.normalize_or_zero();
+            let open = |u: f64, lo: &mut f64, hi: &mut f64| {
+                if u > 0.5 {
+                    *hi = f64::INFINITY;
+                } else if u < -0.5 {
+                    *lo = f64::NEG_INFINITY;
+                }
+            };
+            open(up.x, &mut lo.x, &mut hi.x);
+            open(up.y, &mut lo.y, &mut hi.y);
+        }
+        let outside: Vec<usize> = (0..b.len())
+            .filter(|&k| b.inv_mass[k] > 0.0)
+            .filter(|&k| {
+                let p = b.position[k];
+                p.x < lo.x || p.y < lo.y || p.x > hi.x || p.y > hi.y
+            })
+            .collect();
+        if let Some(&k) = outside.first() {
+            warnings.push(format!(
+                "{} grain(s) start outside the walls' bounds, below or beside them (first: body {k} at {:?})",
+                outside.len(),
+                b.position[k].to_array()
+            ));
+        }
+    }
+    let config = Configuration { position: &b.position, angle: &b.angle };
+    let contacts = Detector::default().detect(b, &config, &world.walls, 0.0, &[], &[]);
+    let (mut in_wall, mut coincident) = (Vec::new(), Vec::new());
+    for c in &contacts {
+        match c.other {
+            Antagonist::Wall(w) if -c.gap > 1e-3 * b.bounding_radius[c.i] => in_wall.push((c.i, w, -c.gap)),
+            Antagonist::Body(j) if b.position[c.i].distance(b.position[j]) <= 1e-9 * b.bounding_radius[c.i] => {
+                coincident.push((c.i, j))
+            }
+            _ => {}
+        }
+    }
+    if let Some(&(k, w, depth)) = in_wall.first() {
+        warnings.push(format!(
+            "{} grain(s) start inside a wall (first: body {k} in wall {w}, {depth:.3e} m deep); they will stay stuck",
+            in_wall.len()
+        ));
+    }
+    if let Some(&(i, j)) = coincident.first() {
+        warnings.push(format!(
+            "{} pair(s) of grains start at the same position (first: bodies {i} and {j}); their contact normal is arbitrary",
+            coincident.len()
+        ));
+    }
+    warnings
+}
+
+/// The first body whose state after a step is not finite or ran away (moved farther than
+/// [`RUNAWAY`] scene extents within the step), in words.
+pub fn check_state(start: &[DVec2], world: &World, extent: f64) -> Result<(), String> {
+    let b = &world.bodies;
+    for (k, from) in start.iter().enumerate() {
+        let finite = b.position[k].is_finite()
+            && b.velocity[k].is_finite()
+            && b.angle.get(k).is_none_or(|a| a.is_finite())
+            && b.spin.get(k).is_none_or(|w| w.is_finite());
+        if !finite {
+            return Err(format!(
+                "body {k} is no longer finite (position {:?}, velocity {:?})",
+                b.position[k].to_array(),
+                b.velocity[k].to_array()
+            ));
+        }
+        let moved = b.position[k].distance(*from);
+        if moved > RUNAWAY * extent {
+            return Err(format!(
+                "body {k} ran away: it moved {moved:.3e} m in one step, more than {RUNAWAY:e} times the scene's extent \
+                 ({extent:.3e} m); the time step is too large for the forces"
+            ));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,205 @@
+//! Hostile scenes and flags on `moreau run` and its siblings: blow-ups stop the run with an
+//! error naming the body and the step, keep the outputs and the last good state, and exit
+//! non-zero; unintegrable scenes are refused up front; suspicious starts are warned about;
+//! outputs never land outside their directory nor sit beside stale files; nothing is silently
+//! accepted.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn moreau() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_moreau"))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("moreau_hostile_{}_{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Runs `moreau run` on `scene` (written to a scratch directory) with `args`; the output
+/// directory is `<scratch>/out`.
+fn run_scene(name: &str, scene: &str, args: &[&str]) -> (Output, PathBuf) {
+    let dir = scratch(name);
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, scene).unwrap();
+    let out = dir.join("out");
+    let output = moreau()
+        .arg("run")
+        .arg(&path)
+        .args(["--quiet", "--device", "cpu", "--out"])
+        .arg(&out)
+        .args(args)
+        .output()
+        .unwrap();
+    (output, out)
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// The run failed with exit code 2 and a message holding every needle.
+fn refused(o: &Output, needles: &[&str]) {
+    let e = stderr(o);
+    assert_eq!(o.status.code(), Some(2), "expected exit 2:\n{e}");
+    assert!(!e.contains("panicked"), "{e}");
+    for n in needles {
+        assert!(e.contains(n), "message does not name {n:?}:\n{e}");
+    }
+}
+
+fn disk_scene(h: &str, radius: &str, velocity: &str, gravity: &str, walls: bool) -> String {
+    format!(
+        "effects = [\"gravity\"]\ngravity = [0.0, {gravity}]\n[time]\nstep = {h}\nsteps = 3000\n\
+         [[material]]\nname = \"g\"\ndensity = 2500.0\n{}[[body]]\ndisk = {{ center = [0.0, 0.5], radius = {radius} }}\n\
+         velocity = [0.0, {velocity}]\n",
+        if walls { "[[wall]]\nsegment = [[-1.0, 0.0], [1.0, 0.0]]\n" } else { "" }
+    )
+}
+
+#[test]
+fn scenes_that_cannot_be_integrated_are_refused_up_front() {
+    let (o, _) = run_scene("huge_radius", &disk_scene("1e-3", "1e200", "0.0", "-9.81", true), &[]);
+    refused(&o, &["body[0]", "mass", "beyond f64"]);
+    let (o, _) = run_scene("huge_speed", &disk_scene("1e-3", "0.01", "-1e160", "-9.81", true), &[]);
+    refused(&o, &["body 0", "kinetic energy overflows"]);
+    let (o, _) = run_scene("huge_step", &disk_scene("1e6", "0.01", "0.0", "-9.81", true), &[]);
+    refused(&o, &["body 0", "h = 1e6", "smaller time step"]);
+    let (o, _) = run_scene(
+        "far_away",
+        &disk_scene("1e-3", "1e-9", "0.0", "-9.81", true).replace("[0.0, 0.5]", "[1e9, 0.5]"),
+        &[],
+    );
+    refused(&o, &["coordinates reach", "smallest grain radius"]);
+}
+
+#[test]
+fn a_run_that_blows_up_stops_at_the_step_and_keeps_its_outputs() {
+    // Without walls a fast fall is allowed to start; with g = 1e4 m/s² the grain outruns 1e3
+    // scene extents per step after about 2,000 steps.
+    let (o, out) = run_scene("runaway", &disk_scene("1e-3", "0.01", "0.0", "-1e4", false), &[]);
+    refused(&o, &["body 0 ran away", "step ", "is kept"]);
+    let e = stderr(&o);
+    let step: usize = e.split("step ").nth(1).and_then(|s| s.split(':').next()).and_then(|s| s.parse().ok()).unwrap();
+    assert!(step > 1000, "{e}");
+    let csv = std::fs::read_to_string(out.join("steps.csv")).unwrap();
+    assert_eq!(csv.lines().count(), step, "steps.csv holds the {} steps before the failure", step - 1);
+    let summary = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    assert!(summary.contains("\"failure\"") && summary.contains("ran away"), "{summary}");
+    let last_good = out.join(format!("grains_{:06}.vtu", step - 1));
+    assert!(last_good.exists(), "the last good state is written as {}", last_good.display());
+}
+
+#[test]
+fn suspicious_starts_are_warned_about() {
+    let scene = "effects = [\"gravity\"]\n[time]\nstep = 1e-3\nsteps = 2\n[[material]]\nname = \"g\"\ndensity = 1.0\n\
+        [[wall]]\nbox = { min = [0.0, 0.0], max = [1.0, 0.2] }\n\
+        [[body]]\ndisk = { center = [0.5, 0.1], radius = 0.05 }\n\
+        [[body]]\ndisk = { center = [5.0, -5.0], radius = 0.05 }\n\
+        [[body]]\ndisk = { center = [0.5, 0.5], radius = 0.05 }\n\
+        [[body]]\ndisk = { center = [0.5, 0.5], radius = 0.05 }\n";
+    let (o, _) = run_scene("suspicious", scene, &[]);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    for needle in [
+        "start outside the walls' bounds, below or beside them (first: body 1",
+        "start inside a wall (first: body 0",
+        "same position (first: bodies 2 and 3",
+    ] {
+        assert!(e.contains(needle), "no warning {needle:?}:\n{e}");
+    }
+}
+
+const SMALL: &str = "[time]\nstep = 1e-3\nsteps = 3\n[[material]]\nname = \"g\"\ndensity = 1.0\n\
+    [[body]]\ndisk = { center = [0.0, 0.0], radius = 0.1 }\n";
+
+#[test]
+fn outputs_stay_in_their_directory_and_hold_no_stale_files() {
+    for name in ["../../escape", "/tmp/absolute", "..", "a/b"] {
+        let (o, _) = run_scene("bad_name", &format!("name = {name:?}\n{SMALL}"), &[]);
+        refused(&o, &["name", "not a plain file name"]);
+    }
+    let (o, out) = run_scene("stale", &format!("[output]\nvtk = true\nevery = 1\n{SMALL}"), &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for stale in ["grains_000999.vtu", "state_000999.png", "problem_000999.dat"] {
+        std::fs::write(out.join(stale), "old").unwrap();
+    }
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    let scene = out.parent().unwrap().join("stale.toml");
+    let again =
+        moreau().arg("run").arg(&scene).args(["--quiet", "--device", "cpu", "--out"]).arg(&out).output().unwrap();
+    assert!(again.status.success() && stderr(&again).contains("of an earlier run"), "{}", stderr(&again));
+    assert!(!out.join("grains_000999.vtu").exists() && !out.join("state_000999.png").exists());
+    assert!(out.join("notes.txt").exists(), "a file the run did not write is left alone");
+    assert!(out.join("grains_000003.vtu").exists());
+}
+
+#[test]
+fn steps_that_never_come_and_zero_periods_are_refused() {
+    let (o, _) = run_scene("late_dump", SMALL, &["--dump-problem", "7"]);
+    refused(&o, &["--dump-problem 7", "steps 1 to 3"]);
+    let (o, _) = run_scene("late_picture", SMALL, &["--picture-step", "9"]);
+    refused(&o, &["--picture-step 9", "steps 1 to 3"]);
+    let (o, _) = run_scene("zero_every", &format!("[output]\nvtk = true\nevery = 0\n{SMALL}"), &[]);
+    refused(&o, &["output.every", ">= 1"]);
+}
+
+#[test]
+fn nothing_is_silently_accepted() {
+    let polygon =
+        |vertices: &str| format!("{SMALL}[[body]]\npolygon = {{ center = [1.0, 0.0], vertices = {vertices} }}\n");
+    let (o, _) = run_scene("concave", &polygon("[[0.0, 0.0], [1.0, 0.0], [0.2, 0.2], [0.0, 1.0]]"), &[]);
+    refused(&o, &["not convex", "vertex 2"]);
+    let star = "[[0.0, 1.0], [0.588, -0.809], [-0.951, 0.309], [0.951, 0.309], [-0.588, -0.809]]";
+    let (o, _) = run_scene("star", &polygon(star), &[]);
+    refused(&o, &["cross each other", "winds 2 times"]);
+    let (o, _) = run_scene("clockwise", &polygon("[[0.0, 0.0], [0.0, 0.1], [0.1, 0.1], [0.1, 0.0]]"), &[]);
+    assert!(o.status.success(), "a clockwise convex polygon is accepted: {}", stderr(&o));
+    let (o, _) = run_scene("gravity3", &format!("effects = [\"gravity\"]\ngravity = [0.0, -9.81, 0.0]\n{SMALL}"), &[]);
+    refused(&o, &["line 2", "exactly 2 values"]);
+    let (o, _) = run_scene("point3", &SMALL.replace("[0.0, 0.0]", "[0.0, 0.0, 1.0]"), &[]);
+    refused(&o, &["exactly 2 values"]);
+    let dir = scratch("flags");
+    let o = moreau().args(["generate", "lattice", "--n", "0", "--out"]).arg(dir.join("p.dat")).output().unwrap();
+    refused(&o, &["--n 0", "at least 1"]);
+    let o = moreau().args(["bench", "--sizes", "100", "--solve-to=-1"]).output().unwrap();
+    refused(&o, &["--solve-to -1", "> 0"]);
+    let o = moreau()
+        .args([
+            "sweep",
+            "scenes/pile.toml",
+            "--solvers",
+            "nlgs",
+            "--tols",
+            "1e-2,1e-3",
+            "--profile-tol",
+            "1e-6",
+            "--out",
+        ])
+        .arg(dir.join("sweep"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    refused(&o, &["--profile-tol", "finest of --tols"]);
+}
+
+#[test]
+fn messages_say_things_once_and_cite_nothing_missing() {
+    let dir = scratch("dir_as_file");
+    for command in ["run", "solve"] {
+        let o = moreau().arg(command).arg(&dir).output().unwrap();
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{e}");
+        assert_eq!(e.matches("os error").count(), 1, "the OS error once: {e}");
+    }
+    for command in ["run", "solve", "bench", "sweep", "friction-study", "generate"] {
+        let help = moreau().args([command, "--help"]).output().unwrap();
+        let text = String::from_utf8_lossy(&help.stdout);
+        assert!(help.status.success());
+        assert!(!text.contains('§') && !text.contains("[`") && !text.contains("crate::"), "{command} --help:\n{text}");
+    }
+    let readme = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
+    assert!(!readme.contains("notes §"), "README cites notes that are not in the repository");
+}
