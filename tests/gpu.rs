@@ -15,20 +15,6 @@ use moreau::problem::{ContactProblem, Delassus};
 use moreau::solvers::{solve, SolverKind, SolverOptions};
 use rand::{Rng, SeedableRng};
 
-fn context() -> Option<GpuContext> {
-    match GpuContext::new() {
-        Ok(ctx) => {
-            eprintln!("adapter: {}", ctx.describe());
-            Some(ctx)
-        }
-        Err(e) if std::env::var("MOREAU_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("{e}"),
-        Err(e) => {
-            eprintln!("skipping the GPU tests: {e}");
-            None
-        }
-    }
-}
-
 /// Kernel and mirror agree to a few f32 roundings of the largest term (fused multiply-adds may
 /// round differently): |gpu − cpu| ≤ 1e-5 · max(1, |cpu|_∞).
 fn assert_close(gpu: &[f32], cpu: &[f32], what: &str) {
@@ -54,7 +40,7 @@ fn pile_problem(effects: &str) -> ContactProblem {
 
 #[test]
 fn every_kernel_matches_its_cpu_mirror() {
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = common::gpu_context() else { return };
     let mut rng = rand::rngs::SmallRng::seed_from_u64(11);
     let problems = [
         ("lattice", lattice_packing(30, 20, 0.4, 3)),
@@ -157,7 +143,7 @@ fn colourings_are_proper_and_a_coloured_sweep_is_a_gauss_seidel_sweep() {
 
 #[test]
 fn gpu_solvers_solve_what_the_cpu_solves() {
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = common::gpu_context() else { return };
     let opts = SolverOptions { tol: 1e-5, max_iter: 200_000, ..SolverOptions::default() };
     let mut cases: Vec<(String, ContactProblem)> = vec![
         ("random_small".into(), random_small(3, 0.5, 7)),
@@ -210,7 +196,7 @@ fn gpu_solvers_solve_what_the_cpu_solves() {
 
 #[test]
 fn a_solver_the_gpu_lacks_is_a_clear_error() {
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = common::gpu_context() else { return };
     let p = random_small(2, 0.3, 1);
     let e = moreau::gpu::solve(&ctx, &p, SolverKind::Latin, &SolverOptions::default(), None).unwrap_err();
     assert!(e.to_string().contains("no latin solver"), "{e}");
@@ -230,7 +216,7 @@ fn gpu_simulation(ctx: GpuContext, toml: &str) -> (moreau::stepping::Simulation,
 
 #[test]
 fn scenes_stepped_on_the_gpu_keep_the_cpu_physics_checks() {
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = common::gpu_context() else { return };
     // A block on a 30° incline with μ = 0.3 slides at g (sin θ − μ cos θ), within 1 %.
     let t = 30f64.to_radians();
     let (dir, n) = ((t.cos(), -t.sin()), (t.sin(), t.cos()));
@@ -267,7 +253,7 @@ disk = {{ center = [{}, {}], radius = 0.1 }}
     let expected = 9.81 * (t.sin() - 0.3 * t.cos());
     assert!((a - expected).abs() <= 0.01 * expected, "a = {a}, expected {expected}");
     // A column of five disks stays at rest.
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = common::gpu_context() else { return };
     let mut column = String::from(
         "effects = [\"gravity\", \"friction\", \"rotation\"]\n[time]\nstep = 1e-3\nsteps = 200\n[solver]\nname = \"jacobi\"\ntol = 1e-6\n[contact]\nfriction = 0.5\n[[material]]\nname = \"m\"\ndensity = 1.0\n[[wall]]\nsegment = [[-2.0, 0.0], [2.0, 0.0]]\n",
     );
@@ -289,7 +275,7 @@ fn floats(bytes: &[u8]) -> Vec<f32> {
 
 #[test]
 fn reductions_cpg_and_apgd_stages_match_their_mirrors() {
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = common::gpu_context() else { return };
     let mut rng = rand::rngs::SmallRng::seed_from_u64(5);
     use moreau::gpu::kernels::Kernels;
     // Deterministic dot products, on sizes around the chunk boundaries.
@@ -512,7 +498,7 @@ fn a_dispatch_past_the_workgroup_limit_covers_every_contact() {
     assert_eq!(moreau::gpu::kernels::grid(65_535), [65_535, 1]);
     let [x, y] = moreau::gpu::kernels::grid(65_536);
     assert!(x <= 65_535 && x * y >= 65_536 && y == 2);
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = common::gpu_context() else { return };
     let nc = 65_535 * 64 + 1000;
     let u: Vec<[f32; 2]> = (0..nc).map(|a| [((a % 7) as f32) - 3.0, ((a % 5) as f32) - 2.0]).collect();
     let mu = vec![0.5f32; nc];

@@ -4,22 +4,13 @@
 //! converged; penetration ≤ 1e-3 of the grain size; drift and kinetic energy of resting
 //! configurations bounded; symmetric scenes stay symmetric.
 
+mod common;
+
 use std::path::Path;
 
 use glam::DVec2;
 use moreau::gpu::GpuContext;
 use moreau::stepping::{Simulation, StepReport};
-
-fn gpu() -> Option<GpuContext> {
-    match GpuContext::new() {
-        Ok(c) => Some(c),
-        Err(e) if std::env::var("MOREAU_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("{e}"),
-        Err(e) => {
-            eprintln!("GPU variants skipped: {e}");
-            None
-        }
-    }
-}
 
 struct Outcome {
     sim: Simulation,
@@ -94,7 +85,7 @@ fn column(n: usize, top_density: f64, solver: &str, on_gpu: bool) -> String {
 #[test]
 fn heavy_grains_on_light_columns_mass_ratio_100_and_1000() {
     for ratio in [100.0, 1000.0] {
-        for ctx in [None, gpu()] {
+        for ctx in [None, common::gpu_context()] {
             let on_gpu = ctx.is_some();
             let o = run(&format!("column 1:{ratio}"), &column(11, ratio, "pcpg", on_gpu), ctx);
             let drift = (0..11).map(|k| (o.sim.position(k).y - (0.05 + 0.1 * k as f64)).abs()).fold(0.0, f64::max);
@@ -106,7 +97,7 @@ fn heavy_grains_on_light_columns_mass_ratio_100_and_1000() {
 
 #[test]
 fn heavy_box_on_two_small_boxes_stays_level() {
-    for ctx in [None, gpu()] {
+    for ctx in [None, common::gpu_context()] {
         let (steps, tol) = gpu_budget(ctx.is_some());
         // Mass ratio 400: a 4×4 box of density 25 on two unit boxes.
         let mut s = header(r#""gravity", "friction", "rotation""#, 1e-2, steps, "nlgs", tol, 0.6);
@@ -132,7 +123,7 @@ fn heavy_box_on_two_small_boxes_stays_level() {
 
 #[test]
 fn a_tall_stack_of_50_disks_does_not_creep() {
-    for ctx in [None, gpu()] {
+    for ctx in [None, common::gpu_context()] {
         let on_gpu = ctx.is_some();
         let o = run("tall stack", &column(50, 1.0, "nlgs", on_gpu), ctx);
         let drift =
@@ -145,7 +136,7 @@ fn a_tall_stack_of_50_disks_does_not_creep() {
 #[test]
 fn a_box_pyramid_keeps_its_height_and_its_symmetry() {
     // Base 10 (55 boxes) in CI; scenes/box_pyramid.toml has base 20 (the 5,050-box one is a benchmark).
-    for ctx in [None, gpu()] {
+    for ctx in [None, common::gpu_context()] {
         let on_gpu = ctx.is_some();
         // The GPU's colour order and f32 keep symmetry to 1e-4 only.
         let (steps, tol, mirror) = if on_gpu { (100, 1e-5, 1e-4) } else { (200, 1e-7, 1e-6) };
@@ -204,7 +195,7 @@ fn high_and_zero_friction_piles_settle_without_penetrating() {
     // Also on the GPU path (about a minute on the software adapter): at tol 1e-5 some steps end
     // at the f32 floor and say so; the penetration criterion must hold all the same.
     for (mu, on_gpu) in [(1.0, false), (0.0, false), (1.0, true), (0.0, true)] {
-        let ctx = match (on_gpu, on_gpu.then(gpu).flatten()) {
+        let ctx = match (on_gpu, on_gpu.then(common::gpu_context).flatten()) {
             (true, None) => continue,
             (_, ctx) => ctx,
         };
@@ -219,7 +210,7 @@ fn high_and_zero_friction_piles_settle_without_penetrating() {
 
 #[test]
 fn polydispersity_one_to_ten() {
-    for ctx in [None, gpu()] {
+    for ctx in [None, common::gpu_context()] {
         let o = run("polydisperse", &pile(0.4, (0.0005, 0.005), 0.0002, 1e-5, 40), ctx);
         let d_min = 0.001;
         assert!(o.max_penetration() < 1e-3 * d_min * 10.0, "penetration {:.2e}", o.max_penetration());
@@ -230,7 +221,7 @@ fn polydispersity_one_to_ten() {
 #[test]
 fn grains_created_overlapping_do_not_explode() {
     // 25 % overlap: centres 1.5 radii apart. Velocity-level Signorini adds no push-out energy.
-    for ctx in [None, gpu()] {
+    for ctx in [None, common::gpu_context()] {
         let (steps, tol) = gpu_budget(ctx.is_some());
         let mut s = header(r#""friction", "rotation""#, 1e-3, steps, "nlgs", tol, 0.3);
         s.push_str("[[material]]\nname = \"g\"\ndensity = 1.0\n");
@@ -253,7 +244,7 @@ fn grains_created_overlapping_do_not_explode() {
 #[test]
 fn a_fast_impact_does_not_tunnel() {
     // A disk of diameter 2 cm at 50 m/s: 2.5 diameters per step.
-    for ctx in [None, gpu()] {
+    for ctx in [None, common::gpu_context()] {
         let tol = gpu_budget(ctx.is_some()).1;
         let mut s = header(r#""gravity", "friction""#, 1e-3, 100, "nlgs", tol, 0.3);
         s.push_str("[[material]]\nname = \"g\"\ndensity = 1.0\n[[wall]]\nsegment = [[-1.0, 0.0], [1.0, 0.0]]\n[[body]]\ndisk = { center = [0.0, 0.5], radius = 0.01 }\nvelocity = [0.0, -50.0]\n");
@@ -281,7 +272,7 @@ fn a_scene_far_from_the_origin_behaves_as_at_the_origin() {
         }
         s
     };
-    for ctx in [None, gpu()] {
+    for ctx in [None, common::gpu_context()] {
         let on_gpu = ctx.is_some();
         let tol = gpu_budget(on_gpu).1;
         let here = run("origin", &shifted(0.0, 0.0, tol), None);
@@ -311,7 +302,7 @@ fn a_resting_problem_with_q_zero_stops_at_once() {
             r.error
         );
     }
-    if let Some(ctx) = gpu() {
+    if let Some(ctx) = common::gpu_context() {
         for kind in moreau::SolverKind::ALL.into_iter().filter(|&k| moreau::gpu::supports(k)) {
             let opts = moreau::SolverOptions { tol: 1e-5, ..Default::default() };
             let r = moreau::gpu::solve(&ctx, &zero, kind, &opts, None).unwrap();
@@ -330,7 +321,7 @@ fn a_resting_problem_with_q_zero_stops_at_once() {
 #[test]
 fn a_square_lattice_of_equal_disks_redundant_contacts_stays_put() {
     // Equal disks on a square lattice, touching: four contacts per grain, W singular.
-    for ctx in [None, gpu()] {
+    for ctx in [None, common::gpu_context()] {
         let (steps, tol) = gpu_budget(ctx.is_some());
         let mut s = header(r#""gravity", "friction", "rotation""#, 1e-3, steps, "nlgs", tol, 0.3);
         s.push_str("[[material]]\nname = \"g\"\ndensity = 1.0\n[[wall]]\ncontainer = { min = [0.0, 0.0], max = [1.0, 2.0] }\n[[generate]]\nkind = \"grid\"\ncount = 100\nradius = [0.05, 0.05]\nspacing = 0.0\nregion = { min = [0.0, 0.0], max = [1.0, 2.0] }\n");
@@ -350,7 +341,7 @@ fn a_square_lattice_of_equal_disks_redundant_contacts_stays_put() {
 fn a_semicircular_arch_of_voussoirs_stands() {
     // Nine voussoirs between radii 2 and 2.5, dry joints, μ = 0.6 (thickness / radius = 0.22,
     // above Heyman's minimum of about 0.11 for a semicircle).
-    for ctx in [None, gpu()] {
+    for ctx in [None, common::gpu_context()] {
         let (steps, tol) = if ctx.is_some() { (100, 1e-5) } else { (200, 1e-7) };
         let mut s = header(r#""gravity", "friction", "rotation""#, 1e-2, steps, "nlgs", tol, 0.6);
         s.push_str("[[material]]\nname = \"stone\"\ndensity = 2.0\n[[wall]]\nsegment = [[-5.0, 0.0], [5.0, 0.0]]\n");

@@ -2,6 +2,8 @@
 //! threads that give the same results run after run, grains from CSV files, one backend for
 //! every solver × criterion × device.
 
+mod common;
+
 use std::path::Path;
 
 use moreau::backend::{gpu_refusal, Backend, DeviceChoice, F32_FLOOR};
@@ -11,17 +13,6 @@ use moreau::solvers::stopping::CHECK_WORK;
 use moreau::solvers::{solve, SolverKind, SolverOptions, StopCriterion, StopReason};
 use moreau::stepping::Simulation;
 use moreau::ContactProblem;
-
-fn gpu_context() -> Option<GpuContext> {
-    match GpuContext::new() {
-        Ok(ctx) => Some(ctx),
-        Err(e) if std::env::var("MOREAU_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("{e}"),
-        Err(e) => {
-            eprintln!("skipping the GPU part: {e}");
-            None
-        }
-    }
-}
 
 fn on_threads<T: Send>(n: usize, f: impl FnOnce() -> T + Send) -> T {
     rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap().install(f)
@@ -97,7 +88,7 @@ fn auto_never_takes_the_software_adapter_nor_a_tolerance_below_the_f32_floor() {
 
 #[test]
 fn mixed_precision_reaches_1e_8_from_the_gpu() {
-    let Some(ctx) = gpu_context() else { return };
+    let Some(ctx) = common::gpu_context() else { return };
     let backend = Backend::gpu(ctx);
     let p = lattice_packing(16, 8, 0.5, 2);
     for kind in [SolverKind::Nlgs, SolverKind::Pcpg] {
@@ -122,7 +113,7 @@ fn every_solver_criterion_and_device_is_refused_up_front_or_solves() {
         StopCriterion::Velocity,
     ];
     let mut backends = vec![Backend::cpu()];
-    backends.extend(gpu_context().map(Backend::gpu));
+    backends.extend(common::gpu_context().map(Backend::gpu));
     for backend in &backends {
         for kind in SolverKind::ALL {
             for criterion in criteria {

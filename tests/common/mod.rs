@@ -1,6 +1,7 @@
 //! Checks of a returned solution that do not trust the solver.
 #![allow(dead_code)]
 
+use moreau::gpu::GpuContext;
 use moreau::ContactProblem;
 use std::path::PathBuf;
 
@@ -46,4 +47,20 @@ pub fn check_solution(p: &ContactProblem, r: &[f64], tol: f64) -> Result<(), Str
         }
     }
     Ok(())
+}
+
+/// The GPU of the GPU parts of a test (the software adapter in CI), or `None` with a line saying
+/// why they are skipped; `MOREAU_REQUIRE_GPU=1` turns a missing adapter into a failure.
+pub fn gpu_context() -> Option<GpuContext> {
+    match GpuContext::new() {
+        Ok(ctx) => {
+            eprintln!("adapter: {}", ctx.describe());
+            Some(ctx)
+        }
+        Err(e) if std::env::var("MOREAU_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("{e}"),
+        Err(e) => {
+            eprintln!("skipping the GPU parts: {e}");
+            None
+        }
+    }
 }
