@@ -41,9 +41,10 @@ fn stacked_velocities(world: &World, dofs: Dofs) -> Vec<f64> {
     v
 }
 
-/// The matrix-free operator of the detected contacts, levers taken at `position`.
-fn operator(world: &World, position: &[DVec2], contacts: &[DetectedContact], dofs: Dofs) -> Result<MatrixFree, String> {
+/// The matrix-free operator of the detected contacts, levers taken at the bodies' positions.
+fn operator(world: &World, contacts: &[DetectedContact], dofs: Dofs) -> Result<MatrixFree, String> {
     let b = &world.bodies;
+    let position = &b.position;
     let bodies: Vec<Body> = (0..b.len())
         .map(|k| Body { inv_mass: b.inv_mass[k], inv_inertia: if dofs.rotation { b.inv_inertia[k] } else { 0.0 } })
         .collect();
@@ -216,13 +217,10 @@ impl Snapshot {
         }
     }
 
-    fn restore(&self, world: &mut World) {
+    fn restore(self, world: &mut World) {
         let b = &mut world.bodies;
-        b.position.clone_from(&self.position);
-        b.velocity.clone_from(&self.velocity);
-        b.angle.clone_from(&self.angle);
-        b.spin.clone_from(&self.spin);
-        world.walls.clone_from(&self.walls);
+        (b.position, b.velocity, b.angle, b.spin) = (self.position, self.velocity, self.angle, self.spin);
+        world.walls = self.walls;
     }
 }
 
@@ -283,8 +281,7 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
     if nc > 0 {
         // 3. The local problem.
         let world = &sim.world;
-        let op = operator(world, &world.bodies.position, &detected, dofs)
-            .map_err(|message| StepError::Problem { step, message })?;
+        let op = operator(world, &detected, dofs).map_err(|message| StepError::Problem { step, message })?;
         let (mut r0, warm) = sim.warm_start.initial_impulses(&detected);
         report.warm_started = warm;
         let local;
@@ -332,8 +329,7 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
             detection_seconds += again.elapsed().as_secs_f64();
             let (target, missed) = targets(&end, &detected);
             report.missed = missed;
-            let end_op = operator(&sim.world, &sim.world.bodies.position, &end, dofs)
-                .map_err(|message| StepError::Problem { step, message })?;
+            let end_op = operator(&sim.world, &end, dofs).map_err(|message| StepError::Problem { step, message })?;
             let mut gaps: Vec<f64> = end.iter().map(|c| c.gap).collect();
             report.projected = project_positions(&mut sim.world, &end_op, &end, &mut gaps, &target, report.iterations);
             report.max_penetration = gaps.iter().fold(0.0, |m, g| m.max(-g));
