@@ -269,6 +269,50 @@ disk = {{ center = [{}, {}], radius = 0.1 }}
     assert!(sim.position(4).distance(top) < 1e-6, "the column moved by {}", sim.position(4).distance(top));
 }
 
+/// Buffers are taken from the context's pool and written in place: a solve after others of
+/// other sizes gives the same bits as on a fresh context, and creates no buffer once the pool
+/// holds the sizes it needs.
+#[test]
+fn pooled_buffers_carry_nothing_from_one_solve_to_the_next() {
+    let Some(ctx) = common::gpu_context() else { return };
+    let (a, b) = (lattice_packing(24, 10, 0.3, 4), lattice_packing(40, 16, 0.5, 5));
+    let opts = SolverOptions { tol: 1e-300, max_iter: 40, ..Default::default() };
+    let bits = |r: &[f64]| r.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    for kind in [SolverKind::Nlgs, SolverKind::Pcpg, SolverKind::Apgd, SolverKind::Jacobi] {
+        let first = moreau::gpu::solve(&ctx, &a, kind, &opts, None).unwrap();
+        moreau::gpu::solve(&ctx, &b, kind, &opts, None).unwrap();
+        let created = ctx.pool.created();
+        let again = moreau::gpu::solve(&ctx, &a, kind, &opts, None).unwrap();
+        assert_eq!(bits(&first.r), bits(&again.r), "{kind}: a solve after another differs");
+        assert_eq!(ctx.pool.created(), created, "{kind}: buffers created for a size the pool holds");
+    }
+}
+
+/// A pile stepped with its solves on the GPU: each step's colouring is repaired from the last,
+/// and after the first steps a step creates no GPU buffer.
+#[test]
+fn a_gpu_stepped_pile_reuses_its_buffers_and_its_colouring() {
+    let Some(ctx) = common::gpu_context() else { return };
+    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/pile.toml")).unwrap();
+    let (mut sim, _) = gpu_simulation(ctx, &text);
+    sim.keep_problems(true);
+    let mut created = Vec::new();
+    for _ in 0..40 {
+        let r = sim.step().unwrap();
+        assert!(r.error.is_finite(), "{r:?}");
+        created.push(sim.backend().gpu_context().unwrap().pool.created());
+        if let Some(p) = sim.last_problem() {
+            let Delassus::MatrixFree(op) = &p.w else { panic!("a step's problem is matrix-free") };
+            let c = op.colouring_if_built().expect("the GPU sweep coloured the graph");
+            assert!(c.is_proper(Colouring::neighbours_in(&p.w)));
+        }
+    }
+    // The first step creates what a step uses; while the grains land the contacts grow into new
+    // capacities, then a step finds nearly every size pooled: over the last 20 steps, fewer
+    // buffers are created than one step uses (without the pool: 20 steps' worth).
+    assert!(created[39] - created[19] < created[0], "buffers created by step: {created:?}");
+}
+
 fn floats(bytes: &[u8]) -> Vec<f32> {
     bytemuck::cast_slice::<u8, f32>(bytes).to_vec()
 }

@@ -231,6 +231,46 @@ fn the_cpu_colouring_is_proper_on_matrix_free_and_explicit_operators() {
     assert!(c.is_proper(moreau::problem::colouring::Colouring::neighbours_in(&explicit)));
 }
 
+/// A threaded (or GPU) sweep colours the contact graph; from one step to the next the contacts
+/// carried over keep their colour class and only new contacts are coloured.
+#[test]
+fn a_step_repairs_the_last_colouring_rather_than_rebuilding_it() {
+    use moreau::problem::colouring::Colouring;
+    use std::collections::HashMap;
+    on_threads(2, || {
+        let s = moreau::scene::load(Path::new("scenes/pile_10k.toml")).unwrap();
+        let mut sim = Simulation::new(s.world, s.settings).unwrap();
+        sim.keep_problems(true);
+        let mut last: Option<HashMap<_, u32>> = None;
+        let (mut kept, mut new) = (0, 0);
+        for _ in 0..4 {
+            sim.step().unwrap();
+            let p = sim.last_problem().expect("contacts");
+            let moreau::problem::Delassus::MatrixFree(op) = &p.w else { panic!("a step's problem is matrix-free") };
+            let c = op.colouring_if_built().expect("the threaded sweep coloured the graph");
+            assert!(c.is_proper(Colouring::neighbours_in(&p.w)), "step {}: improper colouring", sim.steps_done());
+            let now: HashMap<_, u32> =
+                sim.contacts().iter().zip(c.colour_of_each()).map(|(s, c)| (s.contact.key(), c)).collect();
+            if let Some(last) = &last {
+                // Colours emptied by lost contacts are dropped, so compare classes: one old colour
+                // maps to one new colour.
+                let mut class = HashMap::new();
+                for (key, colour) in &now {
+                    match last.get(key) {
+                        Some(old) => {
+                            kept += 1;
+                            assert_eq!(*class.entry(*old).or_insert(*colour), *colour, "a kept contact changed class");
+                        }
+                        None => new += 1,
+                    }
+                }
+            }
+            last = Some(now);
+        }
+        assert!(kept > 50_000 && new > 0, "{kept} contacts kept, {new} new over three steps");
+    });
+}
+
 /// The Newton prototype (notes §11.1) solves small frictional problems to tight tolerances, and
 /// its hybrid starts with NLGS sweeps.
 #[test]

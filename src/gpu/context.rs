@@ -28,6 +28,8 @@ pub struct GpuContext {
     pub info: wgpu::AdapterInfo,
     /// Compiled pipelines per specialisation (rotation, friction), built on first use.
     kernels: std::sync::Mutex<Vec<KernelCacheEntry>>,
+    /// Buffers kept from one solve to the next.
+    pub pool: std::sync::Arc<super::pool::BufferPool>,
 }
 
 impl GpuContext {
@@ -77,7 +79,7 @@ impl GpuContext {
             ..Default::default()
         }))
         .map_err(|e| GpuError::NoDevice { adapter: info.name.clone(), message: e.to_string() })?;
-        Ok(Self { device, queue, info, kernels: Default::default() })
+        Ok(Self { device, queue, info, kernels: Default::default(), pool: Default::default() })
     }
 
     /// The pipelines for a problem with or without rotation and friction (compiled once).

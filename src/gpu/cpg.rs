@@ -11,6 +11,7 @@ use super::driver::{initial_impulses, iterate};
 use super::kernels::{bind, dispatch, groups, storage, submit, uniform};
 use super::layout::to_f32_pairs;
 use super::operator::GpuProblem;
+use super::pool::{BindGroup, GpuBuffer};
 use super::reduce::{partials_len, Dot};
 use crate::problem::cone::{project_box, status_of};
 use crate::problem::ContactProblem;
@@ -66,7 +67,7 @@ pub fn solve(
     let dot_dy = Dot::new(ctx, k, &d_buf, &y_buf, n, &partials, &scalars, 2);
     let dot_changed = Dot::new(ctx, k, &changed_buf, &changed_buf, nc, &partials, &scalars, 3);
     let dot_yw = Dot::new(ctx, k, &y_buf, &w_buf, n, &partials, &scalars, 4);
-    let stages: Vec<(wgpu::BindGroup, wgpu::Buffer)> = (0..3u32)
+    let stages: Vec<(BindGroup, GpuBuffer)> = (0..3u32)
         .map(|s| {
             let u = uniform(ctx, "stage", &[s, 0, 0, 0]);
             (bind(ctx, &k.cpg_scalars, &[&scalars, &u]), u)

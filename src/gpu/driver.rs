@@ -11,6 +11,7 @@ use super::context::{GpuContext, GpuError};
 use super::kernels::{bind, dispatch, groups, read_back, storage, submit};
 use super::layout::to_f64;
 use super::operator::{GpuOperator, GpuProblem};
+use super::pool::{BindGroup, GpuBuffer};
 use super::reduce::{partials_len, Dot};
 use crate::problem::cone::project_cone;
 use crate::problem::residual::error_of;
@@ -47,7 +48,7 @@ pub fn iterate(
     kind: SolverKind,
     start: Instant,
     mut r: Vec<f64>,
-    r_buf: &wgpu::Buffer,
+    r_buf: &GpuBuffer,
     products_per_iteration: usize,
     record: impl Fn(&mut wgpu::ComputePass),
 ) -> Result<SolveReport, GpuError> {
@@ -152,16 +153,16 @@ pub fn iterate(
 struct Checker {
     operator: GpuOperator,
     kernels: std::sync::Arc<super::kernels::Kernels>,
-    residual: wgpu::BindGroup,
+    residual: BindGroup,
     dots: [Dot; 3],
-    scalars: wgpu::Buffer,
+    scalars: GpuBuffer,
     q_norm: f64,
     groups: u32,
-    _buffers: Vec<wgpu::Buffer>,
+    _buffers: Vec<GpuBuffer>,
 }
 
 impl Checker {
-    fn new(ctx: &GpuContext, p: &ContactProblem, gp: &GpuProblem, r_buf: &wgpu::Buffer) -> Self {
+    fn new(ctx: &GpuContext, p: &ContactProblem, gp: &GpuProblem, r_buf: &GpuBuffer) -> Self {
         let nc = p.n_contacts();
         let kernels = gp.kernels.clone();
         let u = storage(ctx, "u check", &vec![[0.0f32; 2]; nc]);

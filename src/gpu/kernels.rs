@@ -1,9 +1,8 @@
 //! Compute pipelines of the WGSL kernels in shaders/, specialised by pipeline-overridable
 //! constants: a scene without rotation or friction runs kernels compiled without that work.
 
-use wgpu::util::DeviceExt;
-
 use super::context::GpuContext;
+pub use super::pool::{BindGroup, GpuBuffer};
 use super::traffic;
 
 pub const WORKGROUP: u32 = 64;
@@ -98,9 +97,22 @@ impl Kernels {
     }
 }
 
-/// A storage buffer holding `data` (at least 4 bytes: wgpu rejects empty bindings).
-pub fn storage<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, data: &[T]) -> wgpu::Buffer {
-    let bytes: &[u8] = bytemuck::cast_slice(data);
+/// The usage of every storage buffer: bound to kernels, written from and read back to the CPU.
+const STORAGE: wgpu::BufferUsages =
+    wgpu::BufferUsages::STORAGE.union(wgpu::BufferUsages::COPY_SRC).union(wgpu::BufferUsages::COPY_DST);
+
+/// A storage buffer holding `data` (at least 4 bytes: wgpu rejects empty bindings), from the
+/// context's pool.
+pub fn storage<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, data: &[T]) -> GpuBuffer {
+    filled(ctx, label, STORAGE, bytemuck::cast_slice(data))
+}
+
+/// A small uniform buffer (colour ranges), from the context's pool.
+pub fn uniform<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, data: &[T]) -> GpuBuffer {
+    filled(ctx, label, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST, bytemuck::cast_slice(data))
+}
+
+fn filled(ctx: &GpuContext, label: &str, usage: wgpu::BufferUsages, bytes: &[u8]) -> GpuBuffer {
     let padded;
     let contents = if bytes.is_empty() {
         padded = [0u8; 4];
@@ -109,24 +121,24 @@ pub fn storage<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, data: &[T]) -> w
         bytes
     };
     traffic::uploaded(contents.len());
-    ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(label),
-        contents,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-    })
+    let buffer = ctx.pool.take(&ctx.device, label, usage, contents.len() as u64);
+    ctx.queue.write_buffer(&buffer, 0, contents);
+    buffer
 }
 
-pub fn bind(ctx: &GpuContext, pipeline: &wgpu::ComputePipeline, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
+/// A bind group of `buffers` in binding order, each bound with its own length.
+pub fn bind(ctx: &GpuContext, pipeline: &wgpu::ComputePipeline, buffers: &[&GpuBuffer]) -> BindGroup {
     let entries: Vec<wgpu::BindGroupEntry> = buffers
         .iter()
         .enumerate()
-        .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() })
+        .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.binding() })
         .collect();
-    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+    let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: None,
         layout: &pipeline.get_bind_group_layout(0),
         entries: &entries,
-    })
+    });
+    BindGroup::new(group, buffers.iter().map(|&b| b.clone()).collect())
 }
 
 /// Records one compute pass with `record` and submits it.
@@ -168,16 +180,6 @@ pub fn grid(workgroups: u32) -> [u32; 2] {
     [workgroups.div_ceil(rows), rows]
 }
 
-/// A small uniform buffer (colour ranges).
-pub fn uniform<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, data: &[T]) -> wgpu::Buffer {
-    traffic::uploaded(std::mem::size_of_val(data));
-    ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(label),
-        contents: bytemuck::cast_slice(data),
-        usage: wgpu::BufferUsages::UNIFORM,
-    })
-}
-
 /// Workgroups to cover `n` items.
 pub fn groups(n: usize) -> u32 {
     (n as u32).div_ceil(WORKGROUP).max(1)
@@ -186,17 +188,13 @@ pub fn groups(n: usize) -> u32 {
 /// Copies `buffer` back to the CPU as `T`s.
 pub fn read_back<T: bytemuck::Pod>(ctx: &GpuContext, buffer: &wgpu::Buffer, count: usize) -> Result<Vec<T>, String> {
     let size = (count * std::mem::size_of::<T>()).max(4) as u64;
-    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("read back"),
-        size,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
+    let staging =
+        ctx.pool.take(&ctx.device, "read back", wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST, size);
     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
     encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
     traffic::downloaded(size as usize);
     ctx.queue.submit([encoder.finish()]);
-    let slice = staging.slice(..);
+    let slice = staging.slice(..size);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);

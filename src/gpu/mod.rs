@@ -13,6 +13,7 @@ pub mod kernels;
 pub mod layout;
 pub mod nlgs;
 pub mod operator;
+pub mod pool;
 pub mod reduce;
 pub mod stages;
 pub mod timing;

@@ -13,7 +13,8 @@ use super::driver::{initial_impulses, iterate};
 use super::kernels::{bind, dispatch, groups, storage, submit, uniform};
 use super::layout::to_f32_pairs;
 use super::operator::{GpuMatrix, GpuProblem};
-use crate::problem::ContactProblem;
+use super::pool::{BindGroup, GpuBuffer};
+use crate::problem::{ContactProblem, Delassus};
 use crate::solvers::{SolveReport, SolverKind, SolverOptions};
 
 /// The `Range` uniform of the colour kernels (padded to 16 bytes).
@@ -39,7 +40,7 @@ pub fn solve(
     let r_buf = storage(ctx, "r", &to_f32_pairs(&r));
     let diag_buf = storage(ctx, "diag", &diag);
     // Per colour: its range uniform (kept alive by its bind group) and its size.
-    let ranges = |c: &Colouring| -> Vec<(wgpu::Buffer, u32)> {
+    let ranges = |c: &Colouring| -> Vec<(GpuBuffer, u32)> {
         (0..c.n_colours())
             .map(|k| {
                 let range = Range { start: c.start[k], count: c.start[k + 1] - c.start[k], _pad: [0; 2] };
@@ -49,7 +50,11 @@ pub fn solve(
     };
     let (pipeline, groups_per_colour, _order) = match &gp.matrix {
         GpuMatrix::MatrixFree { layout, contacts, body_start, body_list, inv_mass } => {
-            let colouring = Colouring::matrix_free(layout);
+            // The operator's own colouring (repaired from the last step's in a simulation).
+            let colouring = match &p.w {
+                Delassus::MatrixFree(op) => op.colouring().clone(),
+                Delassus::Sparse(_) => Colouring::matrix_free(layout),
+            };
             let order = storage(ctx, "order", &colouring.order);
             let v = storage(ctx, "v", &vec![[0.0f32; 4]; layout.inv_mass.len()]);
             // v = M⁻¹ Bᵀ r of the starting impulses, once.
@@ -58,7 +63,7 @@ pub fn solve(
             submit(ctx, "nlgs start", |pass| {
                 dispatch(pass, &kernels.body_accumulate, &accumulate, groups(layout.inv_mass.len()))
             });
-            let per_colour: Vec<(wgpu::BindGroup, u32)> = ranges(&colouring)
+            let per_colour: Vec<(BindGroup, u32)> = ranges(&colouring)
                 .into_iter()
                 .map(|(range, count)| {
                     let buffers = [contacts, inv_mass, &diag_buf, &gp.q, &gp.mu, &order, &r_buf, &v, &range];
@@ -70,7 +75,7 @@ pub fn solve(
         GpuMatrix::Sparse { layout, row_ptr, cols, blocks } => {
             let colouring = Colouring::block_sparse(layout);
             let order = storage(ctx, "order", &colouring.order);
-            let per_colour: Vec<(wgpu::BindGroup, u32)> = ranges(&colouring)
+            let per_colour: Vec<(BindGroup, u32)> = ranges(&colouring)
                 .into_iter()
                 .map(|(range, count)| {
                     let buffers = [row_ptr, cols, blocks, &diag_buf, &gp.q, &gp.mu, &order, &r_buf, &range];

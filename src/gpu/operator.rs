@@ -7,29 +7,30 @@ use std::sync::Arc;
 use super::context::GpuContext;
 use super::kernels::{bind, dispatch, groups, storage, Kernels};
 use super::layout::{to_f32_pairs, BsrLayout, MatrixFreeLayout};
+use super::pool::{BindGroup, GpuBuffer};
 use crate::problem::{ContactProblem, Delassus};
 
 /// `W` on the GPU, with the CPU layout it came from (the NLGS colouring reads it).
 pub enum GpuMatrix {
     MatrixFree {
         layout: MatrixFreeLayout,
-        contacts: wgpu::Buffer,
-        body_start: wgpu::Buffer,
-        body_list: wgpu::Buffer,
-        inv_mass: wgpu::Buffer,
+        contacts: GpuBuffer,
+        body_start: GpuBuffer,
+        body_list: GpuBuffer,
+        inv_mass: GpuBuffer,
     },
     Sparse {
         layout: BsrLayout,
-        row_ptr: wgpu::Buffer,
-        cols: wgpu::Buffer,
-        blocks: wgpu::Buffer,
+        row_ptr: GpuBuffer,
+        cols: GpuBuffer,
+        blocks: GpuBuffer,
     },
 }
 
 pub struct GpuProblem {
     pub matrix: GpuMatrix,
-    pub q: wgpu::Buffer,
-    pub mu: wgpu::Buffer,
+    pub q: GpuBuffer,
+    pub mu: GpuBuffer,
     pub kernels: Arc<Kernels>,
 }
 
@@ -66,7 +67,7 @@ impl GpuProblem {
     }
 
     /// A product `u = W r + q` reading `r` and `q` and writing `u`.
-    pub fn product(&self, ctx: &GpuContext, r: &wgpu::Buffer, q: &wgpu::Buffer, u: &wgpu::Buffer) -> GpuOperator {
+    pub fn product(&self, ctx: &GpuContext, r: &GpuBuffer, q: &GpuBuffer, u: &GpuBuffer) -> GpuOperator {
         let k = &self.kernels;
         match &self.matrix {
             GpuMatrix::MatrixFree { layout, contacts, body_start, body_list, inv_mass } => {
@@ -89,17 +90,8 @@ impl GpuProblem {
 
 /// A bound product `u = W r + q` (bind groups keep the buffers they use alive).
 pub enum GpuOperator {
-    MatrixFree {
-        bodies: usize,
-        contacts: usize,
-        accumulate: wgpu::BindGroup,
-        gather: wgpu::BindGroup,
-        _v: wgpu::Buffer,
-    },
-    Sparse {
-        contacts: usize,
-        product: wgpu::BindGroup,
-    },
+    MatrixFree { bodies: usize, contacts: usize, accumulate: BindGroup, gather: BindGroup, _v: GpuBuffer },
+    Sparse { contacts: usize, product: BindGroup },
 }
 
 impl GpuOperator {

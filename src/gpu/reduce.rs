@@ -5,13 +5,14 @@
 use super::context::GpuContext;
 use super::cpu::reduce_dot::n_partials;
 use super::kernels::{bind, dispatch, uniform, Kernels};
+use super::pool::{BindGroup, GpuBuffer};
 
 /// A bound dot product `scalars[slot] = a · b` over `n` f32 entries.
 pub struct Dot {
-    first: wgpu::BindGroup,
-    second: wgpu::BindGroup,
+    first: BindGroup,
+    second: BindGroup,
     groups: u32,
-    _uniforms: [wgpu::Buffer; 2],
+    _uniforms: [GpuBuffer; 2],
 }
 
 impl Dot {
@@ -19,11 +20,11 @@ impl Dot {
     pub fn new(
         ctx: &GpuContext,
         k: &Kernels,
-        a: &wgpu::Buffer,
-        b: &wgpu::Buffer,
+        a: &GpuBuffer,
+        b: &GpuBuffer,
         n: usize,
-        partials: &wgpu::Buffer,
-        scalars: &wgpu::Buffer,
+        partials: &GpuBuffer,
+        scalars: &GpuBuffer,
         slot: u32,
     ) -> Self {
         let groups = n_partials(n) as u32;

@@ -4,6 +4,7 @@
 use super::context::{GpuContext, GpuError};
 use super::kernels::{bind, dispatch, groups, read_back, storage, submit, Kernels};
 use super::layout::{BsrLayout, MatrixFreeLayout};
+use super::pool::GpuBuffer;
 
 /// `r` (2 per contact) and `v` (4 per body) after a stage.
 pub type ImpulsesAndVelocities = (Vec<[f32; 2]>, Vec<[f32; 4]>);
@@ -100,7 +101,7 @@ pub fn nlgs_colour(
         storage(ctx, "r", r),
         storage(ctx, "v", v),
     ];
-    let mut all: Vec<&wgpu::Buffer> = bufs.iter().collect();
+    let mut all: Vec<&GpuBuffer> = bufs.iter().collect();
     all.push(&range);
     let group = bind(ctx, &k.nlgs_colour, &all);
     run(ctx, &k.nlgs_colour, &group, count as usize);
@@ -135,7 +136,7 @@ pub fn nlgs_colour_bsr(
         storage(ctx, "order", &colouring.order),
         storage(ctx, "r", r),
     ];
-    let mut all: Vec<&wgpu::Buffer> = bufs.iter().collect();
+    let mut all: Vec<&GpuBuffer> = bufs.iter().collect();
     all.push(&range);
     let group = bind(ctx, &k.nlgs_colour_bsr, &all);
     run(ctx, &k.nlgs_colour_bsr, &group, count as usize);
@@ -155,9 +156,9 @@ pub fn run_raw(
 ) -> Result<Vec<Vec<u8>>, GpuError> {
     let k = Kernels::new(ctx, true, true);
     let pipeline = pick(&k);
-    let bufs: Vec<wgpu::Buffer> = buffers.iter().map(|b| storage(ctx, "raw", b)).collect();
-    let unis: Vec<wgpu::Buffer> = uniforms.iter().map(|u| super::kernels::uniform(ctx, "raw", u)).collect();
-    let all: Vec<&wgpu::Buffer> = bufs.iter().chain(unis.iter()).collect();
+    let bufs: Vec<GpuBuffer> = buffers.iter().map(|b| storage(ctx, "raw", b)).collect();
+    let unis: Vec<GpuBuffer> = uniforms.iter().map(|u| super::kernels::uniform(ctx, "raw", u)).collect();
+    let all: Vec<&GpuBuffer> = bufs.iter().chain(unis.iter()).collect();
     let group = bind(ctx, pipeline, &all);
     submit(ctx, "stage", |pass| dispatch(pass, pipeline, &group, workgroups));
     read.iter().map(|&i| read_back::<u8>(ctx, &bufs[i], buffers[i].len()).map_err(GpuError::Runtime)).collect()

@@ -7,6 +7,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 static DISPATCHES: AtomicU64 = AtomicU64::new(0);
 static BYTES_UP: AtomicU64 = AtomicU64::new(0);
 static BYTES_DOWN: AtomicU64 = AtomicU64::new(0);
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+static BYTES_ALLOCATED: AtomicU64 = AtomicU64::new(0);
 
 /// Dispatches and bytes, since start or over an interval.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -16,6 +18,9 @@ pub struct Traffic {
     pub bytes_up: u64,
     /// GPU → CPU (read-backs).
     pub bytes_down: u64,
+    /// GPU buffers created (a pooled buffer reused is not counted), and their bytes.
+    pub allocations: u64,
+    pub bytes_allocated: u64,
 }
 
 impl Traffic {
@@ -25,6 +30,8 @@ impl Traffic {
             dispatches: DISPATCHES.load(Ordering::Relaxed),
             bytes_up: BYTES_UP.load(Ordering::Relaxed),
             bytes_down: BYTES_DOWN.load(Ordering::Relaxed),
+            allocations: ALLOCATIONS.load(Ordering::Relaxed),
+            bytes_allocated: BYTES_ALLOCATED.load(Ordering::Relaxed),
         }
     }
 
@@ -35,6 +42,8 @@ impl Traffic {
             dispatches: now.dispatches - earlier.dispatches,
             bytes_up: now.bytes_up - earlier.bytes_up,
             bytes_down: now.bytes_down - earlier.bytes_down,
+            allocations: now.allocations - earlier.allocations,
+            bytes_allocated: now.bytes_allocated - earlier.bytes_allocated,
         }
     }
 }
@@ -49,4 +58,9 @@ pub(crate) fn uploaded(bytes: usize) {
 
 pub(crate) fn downloaded(bytes: usize) {
     BYTES_DOWN.fetch_add(bytes as u64, Ordering::Relaxed);
+}
+
+pub(crate) fn allocated(bytes: usize) {
+    ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+    BYTES_ALLOCATED.fetch_add(bytes as u64, Ordering::Relaxed);
 }

@@ -49,12 +49,7 @@ impl Colouring {
 
     /// True when no two contacts of a colour are neighbours.
     pub fn is_proper(&self, neighbours: impl Fn(usize, &mut Vec<usize>)) -> bool {
-        let mut colour = vec![0usize; self.order.len()];
-        for c in 0..self.n_colours() {
-            for &a in self.colour(c) {
-                colour[a as usize] = c;
-            }
-        }
+        let colour = self.colour_of_each();
         let mut list = Vec::new();
         (0..self.order.len()).all(|a| {
             list.clear();
@@ -63,10 +58,10 @@ impl Colouring {
         })
     }
 
-    /// The colouring of an operator's contact graph.
+    /// The colouring of an operator's contact graph (a matrix-free operator's own, built once).
     pub fn of(w: &Delassus) -> Self {
         match w {
-            Delassus::MatrixFree(m) => Self::matrix_free_greedy(m),
+            Delassus::MatrixFree(m) => m.colouring().clone(),
             Delassus::Sparse(s) => {
                 let adjacency = s.adjacency();
                 Self::from_neighbours(adjacency.len(), |a, out| out.extend_from_slice(&adjacency[a]))
@@ -77,28 +72,48 @@ impl Colouring {
     /// The same greedy colouring as [`Self::from_neighbours`] over shared moving bodies, with the
     /// colours taken by neighbours kept in a bit set (no list to gather, sort and dedup): the
     /// colouring of a time step's problem costs a fraction of one sweep.
-    fn matrix_free_greedy(m: &MatrixFree) -> Self {
-        let n = m.n_contacts();
-        let incidence = m.incidence();
-        let mut colour = vec![usize::MAX; n];
-        let mut taken: Vec<u64> = Vec::new();
-        for a in 0..n {
-            taken.iter_mut().for_each(|w| *w = 0);
-            for k in m.moving_bodies_of(a) {
-                for b in incidence.contacts_of(k) {
-                    let c = colour[b];
-                    if c != usize::MAX {
-                        if c / 64 >= taken.len() {
-                            taken.resize(c / 64 + 1, 0);
-                        }
-                        taken[c / 64] |= 1 << (c % 64);
-                    }
-                }
-            }
-            let word = taken.iter().position(|w| *w != u64::MAX).unwrap_or(taken.len());
-            colour[a] = 64 * word + taken.get(word).map_or(0, |w| w.trailing_ones() as usize);
-        }
+    pub(crate) fn matrix_free_greedy(m: &MatrixFree) -> Self {
+        let mut colour = vec![usize::MAX; m.n_contacts()];
+        greedy_fill(m, &mut colour);
         Self::from_colours(&colour)
+    }
+
+    /// A proper colouring of `m`'s graph that keeps the colours `kept` carries over from the
+    /// last step's proper colouring, for contacts between the same bodies (`None`: a new
+    /// contact), and colours the new contacts greedily. Valid when the bodies that move are the
+    /// same as last step's (the stepping checks). A settled pile keeps nearly all its contacts,
+    /// so this costs a small part of a fresh colouring, and the sweep order stays the same from
+    /// step to step. Colours left empty are dropped.
+    pub fn repaired(m: &MatrixFree, kept: &[Option<u32>]) -> Self {
+        debug_assert_eq!(kept.len(), m.n_contacts());
+        let mut colour: Vec<usize> = kept.iter().map(|c| c.map_or(usize::MAX, |c| c as usize)).collect();
+        greedy_fill(m, &mut colour);
+        let mut used = vec![false; colour.iter().map(|&c| c + 1).max().unwrap_or(0)];
+        colour.iter().for_each(|&c| used[c] = true);
+        let dense: Vec<usize> = used
+            .iter()
+            .scan(0, |next, &u| {
+                Some(if u {
+                    *next += 1;
+                    *next - 1
+                } else {
+                    0
+                })
+            })
+            .collect();
+        colour.iter_mut().for_each(|c| *c = dense[*c]);
+        Self::from_colours(&colour)
+    }
+
+    /// Each contact's colour (the inverse of `order` and `start`).
+    pub fn colour_of_each(&self) -> Vec<u32> {
+        let mut colour = vec![0u32; self.order.len()];
+        for c in 0..self.n_colours() {
+            for &a in self.colour(c) {
+                colour[a as usize] = c as u32;
+            }
+        }
+        colour
     }
 
     /// Contacts ordered by colour (in increasing index within a colour).
@@ -120,6 +135,15 @@ impl Colouring {
         Self { order, start }
     }
 
+    /// The neighbours of contact `a` in a matrix-free operator's contact graph.
+    pub fn neighbours_in_matrix_free(m: &MatrixFree) -> impl Fn(usize, &mut Vec<usize>) + '_ {
+        move |a, out| {
+            for k in m.moving_bodies_of(a) {
+                out.extend(m.incidence().contacts_of(k).filter(|&b| b != a));
+            }
+        }
+    }
+
     /// The neighbours of contact `a` in `w`'s contact graph (for checking a colouring).
     pub fn neighbours_in(w: &Delassus) -> impl Fn(usize, &mut Vec<usize>) + '_ {
         let adjacency = match w {
@@ -127,11 +151,7 @@ impl Colouring {
             Delassus::MatrixFree(_) => Vec::new(),
         };
         move |a, out| match w {
-            Delassus::MatrixFree(m) => {
-                for k in m.moving_bodies_of(a) {
-                    out.extend(m.incidence().contacts_of(k).filter(|&b| b != a));
-                }
-            }
+            Delassus::MatrixFree(m) => Self::neighbours_in_matrix_free(m)(a, out),
             Delassus::Sparse(_) => out.extend_from_slice(&adjacency[a]),
         }
     }
@@ -154,4 +174,63 @@ pub fn pattern_adjacency<I: Iterator<Item = usize>>(n: usize, row: impl Fn(usize
         list.dedup();
     }
     adjacency
+}
+
+/// Gives each contact still uncoloured (`usize::MAX`), in index order, the smallest colour none
+/// of its neighbours (contacts sharing a moving body) has; the colours taken are kept in a bit set.
+fn greedy_fill(m: &MatrixFree, colour: &mut [usize]) {
+    let incidence = m.incidence();
+    let mut taken: Vec<u64> = Vec::new();
+    for a in 0..colour.len() {
+        if colour[a] != usize::MAX {
+            continue;
+        }
+        taken.iter_mut().for_each(|w| *w = 0);
+        for k in m.moving_bodies_of(a) {
+            for b in incidence.contacts_of(k) {
+                let c = colour[b];
+                if c != usize::MAX {
+                    if c / 64 >= taken.len() {
+                        taken.resize(c / 64 + 1, 0);
+                    }
+                    taken[c / 64] |= 1 << (c % 64);
+                }
+            }
+        }
+        let word = taken.iter().position(|w| *w != u64::MAX).unwrap_or(taken.len());
+        colour[a] = 64 * word + taken.get(word).map_or(0, |w| w.trailing_ones() as usize);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::problem::generate::lattice_packing;
+
+    #[test]
+    fn a_repaired_colouring_is_proper_and_keeps_the_colours_it_is_given() {
+        let p = lattice_packing(30, 12, 0.3, 3);
+        let Delassus::MatrixFree(m) = &p.w else { panic!("the lattice is matrix-free") };
+        let fresh = Colouring::matrix_free_greedy(m);
+        let colours = fresh.colour_of_each();
+        // Nothing kept: the greedy colouring itself.
+        assert_eq!(Colouring::repaired(m, &vec![None; colours.len()]), fresh);
+        // Every contact kept: the same colouring.
+        let all: Vec<Option<u32>> = colours.iter().map(|&c| Some(c)).collect();
+        assert_eq!(Colouring::repaired(m, &all), fresh);
+        // Colours given to no one are dropped.
+        let shifted: Vec<Option<u32>> = colours.iter().map(|&c| Some(c + 3)).collect();
+        assert_eq!(Colouring::repaired(m, &shifted), fresh);
+        // One contact in five new: proper, and each kept contact keeps its colour.
+        let kept: Vec<Option<u32>> = colours.iter().enumerate().map(|(a, &c)| (a % 5 != 0).then_some(c)).collect();
+        let repaired = Colouring::repaired(m, &kept);
+        assert!(repaired.is_proper(Colouring::neighbours_in(&p.w)));
+        let now = repaired.colour_of_each();
+        for (a, k) in kept.iter().enumerate() {
+            if let Some(k) = k {
+                assert_eq!(now[a], *k, "contact {a}");
+            }
+        }
+        assert!(repaired.n_colours() <= fresh.n_colours() + 1);
+    }
 }

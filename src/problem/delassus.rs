@@ -48,7 +48,10 @@ impl Delassus {
     }
 
     pub fn diag_blocks(&self) -> Vec<Mat2> {
-        (0..self.n_contacts()).map(|a| self.diag_block(a)).collect()
+        match self {
+            Delassus::MatrixFree(m) => m.diag_blocks().to_vec(),
+            Delassus::Sparse(s) => (0..s.n_contacts()).map(|a| s.diag_block(a)).collect(),
+        }
     }
 
     pub fn sweep_state(&self, r: &[f64]) -> SweepState {

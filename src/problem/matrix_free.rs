@@ -7,6 +7,7 @@ use std::sync::OnceLock;
 
 use rayon::prelude::*;
 
+use super::colouring::Colouring;
 use super::{BlockSparse, Mat2};
 use crate::parallel::{parallel, CHUNK};
 
@@ -149,6 +150,11 @@ pub struct MatrixFree {
     pub(crate) dofs: Dofs,
     /// Each body's contacts, built on first use (threaded products, colouring).
     incidence: OnceLock<Incidence>,
+    /// The contact graph's colouring, built on first use or handed in (repaired from the
+    /// last step's by the stepping).
+    colouring: OnceLock<Colouring>,
+    /// The diagonal blocks `W_αα`, built once (a solve and its stopping test both read them).
+    diag: OnceLock<Vec<Mat2>>,
 }
 
 /// The contacts of each body in increasing contact order, with the side the body is on: a
@@ -233,7 +239,15 @@ impl MatrixFree {
                 levers.push([cross(c.lever_i, n), cross(c.lever_i, t), cross(c.lever_j, n), cross(c.lever_j, t)]);
             }
         }
-        Ok(Self { bodies, rows, levers, dofs, incidence: OnceLock::new() })
+        Ok(Self {
+            bodies,
+            rows,
+            levers,
+            dofs,
+            incidence: OnceLock::new(),
+            colouring: OnceLock::new(),
+            diag: OnceLock::new(),
+        })
     }
 
     pub fn n_contacts(&self) -> usize {
@@ -263,7 +277,32 @@ impl MatrixFree {
             levers: if self.dofs.rotation { order.iter().map(|&a| self.levers[a]).collect() } else { Vec::new() },
             dofs: self.dofs,
             incidence: OnceLock::new(),
+            colouring: OnceLock::new(),
+            diag: OnceLock::new(),
         }
+    }
+
+    /// The colouring of the contact graph (contacts sharing a moving body conflict): the one
+    /// handed in by [`Self::give_colouring`], else the greedy one, built once.
+    pub fn colouring(&self) -> &Colouring {
+        self.colouring.get_or_init(|| Colouring::matrix_free_greedy(self))
+    }
+
+    /// Which bodies can move (a contact between two of them conflicts in a Gauss–Seidel sweep).
+    pub fn moving(&self) -> Vec<bool> {
+        self.bodies.iter().map(|b| *b != Body::fixed()).collect()
+    }
+
+    /// The colouring if one was built or handed in (a solve used it).
+    pub fn colouring_if_built(&self) -> Option<&Colouring> {
+        self.colouring.get()
+    }
+
+    /// Hands in a proper colouring of this operator's contact graph (checked in debug builds);
+    /// ignored if one was built already.
+    pub fn give_colouring(&self, colouring: Colouring) {
+        debug_assert!(colouring.is_proper(Colouring::neighbours_in_matrix_free(self)));
+        let _ = self.colouring.set(colouring);
     }
 
     /// Each body's contacts (built once).
@@ -423,6 +462,18 @@ impl MatrixFree {
 
     /// Diagonal block `W_aa`. Without friction the tangential row is decoupled (`r_t ≡ 0`); its
     /// diagonal is set to `W_nn` so that block inverses used by preconditioners stay defined.
+    /// Every diagonal block, built once (on threads for a large problem: the same values).
+    pub fn diag_blocks(&self) -> &[Mat2] {
+        self.diag.get_or_init(|| {
+            let n = self.n_contacts();
+            if parallel(n) {
+                (0..n).into_par_iter().with_min_len(CHUNK).map(|a| self.diag_block(a)).collect()
+            } else {
+                (0..n).map(|a| self.diag_block(a)).collect()
+            }
+        })
+    }
+
     pub fn diag_block(&self, a: usize) -> Mat2 {
         let c = &self.rows[a];
         let (gi, gj) = self.lever_pair(a);

@@ -36,6 +36,9 @@ pub struct Monitor<'a> {
     /// `w_products` after the previous iteration: the work of one iteration is the difference.
     products_seen: usize,
     scratch_u: Vec<f64>,
+    /// `scratch_u = W r + q` of the iterate of this iteration, with its (error, judged): the
+    /// final report of a solve stopped right after a check needs no product of its own.
+    scratch_check: Option<(usize, f64, f64)>,
     iterates: Vec<Vec<f64>>,
     /// The checked iterate with the smallest judged error, returned if the solve does not converge.
     best: Option<(f64, Vec<f64>)>,
@@ -61,6 +64,7 @@ impl<'a> Monitor<'a> {
             cadence: CheckCadence::default(),
             products_seen: 0,
             scratch_u: vec![0.0; r0.len()],
+            scratch_check: None,
             iterates: Vec::new(),
             best: None,
         }
@@ -172,6 +176,7 @@ impl<'a> Monitor<'a> {
     fn full_error(&mut self, r: &[f64], u: Option<&[f64]>, excluded: bool) -> (f64, f64) {
         let t = Instant::now();
         let mut uu = std::mem::take(&mut self.scratch_u);
+        let own_product = u.is_none();
         let u = match u {
             Some(u) => u,
             None => {
@@ -185,6 +190,7 @@ impl<'a> Monitor<'a> {
         let err = natural_map_error(&self.problem.q, &self.problem.mu, r, u);
         let judged = self.judged(r, u, err);
         self.scratch_u = uu;
+        self.scratch_check = own_product.then_some((self.iteration, err, judged));
         if excluded {
             self.excluded += t.elapsed();
         }
@@ -203,10 +209,19 @@ impl<'a> Monitor<'a> {
     /// that did not converge returns its best checked iterate when that is better than its last.
     pub fn finish(mut self, mut r: Vec<f64>) -> SolveReport {
         let seconds = self.elapsed();
-        let mut u = self.problem.velocity(&r);
-        let mut error = natural_map_error(&self.problem.q, &self.problem.mu, &r, &u);
         let lmgc = !matches!(self.opts.criterion, StopCriterion::Natural | StopCriterion::Velocity);
-        let mut judged = self.judged(&r, &u, error);
+        // The last check's product, when it was of the iterate returned (the same bits).
+        let (mut u, mut error, mut judged) = match self.scratch_check.take() {
+            Some((iteration, error, judged)) if iteration == self.iteration && r == self.r_prev => {
+                (std::mem::take(&mut self.scratch_u), error, judged)
+            }
+            _ => {
+                let u = self.problem.velocity(&r);
+                let error = natural_map_error(&self.problem.q, &self.problem.mu, &r, &u);
+                let judged = self.judged(&r, &u, error);
+                (u, error, judged)
+            }
+        };
         if let (Some((best, mut kept)), false) = (self.best.take(), lmgc) {
             if judged.is_nan() || (judged > self.opts.tol && best < judged) {
                 // Some solvers (APGD) iterate in a box that lags the cone: land on the cone first.

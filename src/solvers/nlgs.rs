@@ -34,9 +34,10 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveRepo
     }
 }
 
-/// Renumbers the problem by colour, solves it colour by colour, and numbers the result back.
-fn solve_coloured(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, r: &[f64]) -> SolveReport {
-    let colouring = Colouring::of(&p.w);
+/// The colouring of a matrix-free problem's contact graph, and the problem renumbered so that
+/// each colour is one contiguous range of contacts.
+pub fn colour_ordered(p: &ContactProblem, op: &MatrixFree) -> (Colouring, ContactProblem) {
+    let colouring = op.colouring().clone();
     let order: Vec<usize> = colouring.order.iter().map(|&a| a as usize).collect();
     let pairs = |x: &[f64]| -> Vec<f64> { order.iter().flat_map(|&a| [x[2 * a], x[2 * a + 1]]).collect() };
     let renumbered = ContactProblem {
@@ -44,6 +45,14 @@ fn solve_coloured(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, r: 
         q: pairs(&p.q),
         mu: order.iter().map(|&a| p.mu[a]).collect(),
     };
+    (colouring, renumbered)
+}
+
+/// Renumbers the problem by colour, solves it colour by colour, and numbers the result back.
+fn solve_coloured(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, r: &[f64]) -> SolveReport {
+    let (colouring, renumbered) = colour_ordered(p, op);
+    let order: Vec<usize> = colouring.order.iter().map(|&a| a as usize).collect();
+    let pairs = |x: &[f64]| -> Vec<f64> { order.iter().flat_map(|&a| [x[2 * a], x[2 * a + 1]]).collect() };
     let ranges: Vec<(usize, usize)> =
         (0..colouring.n_colours()).map(|c| (colouring.start[c] as usize, colouring.start[c + 1] as usize)).collect();
     let mut report = solve_on(&renumbered, opts, pairs(r), Some(&ranges));

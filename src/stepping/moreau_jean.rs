@@ -20,6 +20,7 @@ use super::checks::check_state;
 use super::projection::{end_of_step_gaps, project_positions, targets};
 use super::simulation::{ContactState, Simulation, StepError, StepReport};
 use crate::detection::{Antagonist, Configuration, DetectedContact, Detector};
+use crate::problem::colouring::Colouring;
 use crate::problem::cone::status_of;
 use crate::problem::matrix_free::Dofs;
 use crate::problem::{Body, Contact, ContactProblem, Delassus, MatrixFree};
@@ -282,8 +283,13 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
         // 3. The local problem.
         let world = &sim.world;
         let op = operator(world, &detected, dofs).map_err(|message| StepError::Problem { step, message })?;
-        let (mut r0, warm) = sim.warm_start.initial_impulses(&detected);
-        report.warm_started = warm;
+        let moving = op.moving();
+        let recalled = sim.warm_start.recall(&detected, &moving);
+        if let Some(kept) = &recalled.colours {
+            op.give_colouring(Colouring::repaired(&op, kept));
+        }
+        let mut r0 = recalled.impulses;
+        report.warm_started = recalled.matched;
         let local;
         (local, shift) = local_problem(world, op, &detected, (&v_begin, &v_free), (h, theta), &mut r0)
             .map_err(|message| StepError::Problem { step, message })?;
@@ -345,7 +351,11 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
         before.restore(&mut sim.world);
         return Err(StepError::Diverged { step, message });
     }
-    sim.warm_start.remember(&detected, &impulses);
+    let colouring = problem.as_ref().and_then(|p| match &p.w {
+        Delassus::MatrixFree(op) => op.colouring_if_built().map(|c| (c, op.moving())),
+        Delassus::Sparse(_) => None,
+    });
+    sim.warm_start.remember(&detected, &impulses, colouring);
     sim.contacts = match &problem {
         None => Vec::new(),
         Some(problem) => detected

@@ -1,37 +1,80 @@
-//! Carries each contact's impulse to the next step: contacts are matched by (body, antagonist,
-//! feature), so a solve starts from last step's answer.
+//! What a step hands to the next: each contact's impulse (the solve's warm start) and, when the
+//! solve coloured the contact graph (threaded or GPU Gauss–Seidel), each contact's colour, so
+//! the next colouring is repaired rather than rebuilt. Contacts are matched by (body,
+//! antagonist, feature).
 
 use crate::detection::{Antagonist, DetectedContact};
+use crate::problem::colouring::Colouring;
 
 type Key = (usize, Antagonist, u64);
 
-/// Last step's impulses, sorted by contact key.
+/// Last step's impulses and colours, sorted by contact key.
 #[derive(Default, Clone, Debug)]
 pub struct WarmStart {
     entries: Vec<(Key, [f64; 2])>,
+    colours: Option<Colours>,
+}
+
+/// Last step's colour of each entry, and which bodies could move then: kept colours stay
+/// proper only while the same bodies move.
+#[derive(Clone, Debug)]
+struct Colours {
+    of_entry: Vec<u32>,
+    moving: Vec<bool>,
+}
+
+/// What the last step carries over to `contacts`.
+pub struct Recalled {
+    /// Initial impulses, 2 per contact (zero for a new contact).
+    pub impulses: Vec<f64>,
+    /// How many contacts were found in last step's set.
+    pub matched: usize,
+    /// Last step's colour of each contact (`None`: new), when last step's solve coloured its
+    /// graph and the same bodies move.
+    pub colours: Option<Vec<Option<u32>>>,
 }
 
 impl WarmStart {
-    /// Remembers `impulses` (2 per contact) of `contacts` (sorted by key, as detection returns them).
-    pub fn remember(&mut self, contacts: &[DetectedContact], impulses: &[f64]) {
+    /// Remembers `impulses` (2 per contact) of `contacts` (sorted by key, as detection returns
+    /// them), and the colouring the solve used, if any, with the bodies that could move.
+    pub fn remember(
+        &mut self,
+        contacts: &[DetectedContact],
+        impulses: &[f64],
+        colouring: Option<(&Colouring, Vec<bool>)>,
+    ) {
         self.entries.clear();
         self.entries
             .extend(contacts.iter().enumerate().map(|(a, c)| (c.key(), [impulses[2 * a], impulses[2 * a + 1]])));
         debug_assert!(self.entries.windows(2).all(|w| w[0].0 <= w[1].0));
+        self.colours = colouring.map(|(c, moving)| Colours { of_entry: c.colour_of_each(), moving });
     }
 
-    /// Initial impulses for `contacts`, and how many were found in last step's set.
-    pub fn initial_impulses(&self, contacts: &[DetectedContact]) -> (Vec<f64>, usize) {
-        let mut r = vec![0.0; 2 * contacts.len()];
+    /// What carries over to `contacts` (sorted by key); `moving` says which bodies can move now.
+    pub fn recall(&self, contacts: &[DetectedContact], moving: &[bool]) -> Recalled {
+        let mut impulses = vec![0.0; 2 * contacts.len()];
+        let colours = self.colours.as_ref().filter(|c| c.moving == moving);
+        let mut kept = colours.map(|_| vec![None; contacts.len()]);
         let mut matched = 0;
+        // Both lists are sorted by key: one merge.
+        let mut e = 0;
         for (a, c) in contacts.iter().enumerate() {
-            if let Ok(k) = self.entries.binary_search_by(|e| e.0.cmp(&c.key())) {
-                r[2 * a] = self.entries[k].1[0];
-                r[2 * a + 1] = self.entries[k].1[1];
+            let key = c.key();
+            while e < self.entries.len() && self.entries[e].0 < key {
+                e += 1;
+            }
+            if e < self.entries.len() && self.entries[e].0 == key {
+                impulses[2 * a] = self.entries[e].1[0];
+                impulses[2 * a + 1] = self.entries[e].1[1];
+                if let (Some(kept), Some(colours)) = (kept.as_mut(), colours) {
+                    kept[a] = Some(colours.of_entry[e]);
+                }
                 matched += 1;
+                // A key seen twice (two features alike) pairs up in order, never shares a colour.
+                e += 1;
             }
         }
-        (r, matched)
+        Recalled { impulses, matched, colours: kept }
     }
 
     pub fn len(&self) -> usize {
