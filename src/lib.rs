@@ -10,6 +10,33 @@
 //! * [`parallel`]: how the CPU path uses threads (fixed chunks: the same bits on any thread count).
 //! * [`io`]: Siconos fc2d problem files, JSON reports.
 //! * [`cli`]: the `moreau` command line.
+//!
+//! A host steps a scene file, or a world it builds, one Moreau–Jean step at a time:
+//!
+//! ```
+//! use moreau::{BodySpec, DVec2, Effects, Materials, Simulation, StepSettings, Wall, World};
+//! use moreau::world::Interaction;
+//!
+//! let glass = Interaction { friction: 0.3, ..Interaction::default() };
+//! let materials = Materials::new(vec!["glass".into()], vec![2500.0], glass);
+//! let effects = Effects { gravity: Some(DVec2::new(0.0, -9.81)), friction: true, ..Effects::default() };
+//! let mut world = World::new(effects, materials);
+//! world.walls.push(Wall::segment(DVec2::new(-1.0, 0.0), DVec2::new(1.0, 0.0), 0));
+//! world.bodies.add(&BodySpec::disk(DVec2::new(0.0, 0.05), 0.05, 0), 2500.0).unwrap();
+//! let settings = StepSettings::for_world(&world, 1e-3);
+//! let mut sim = Simulation::new(world, settings)?;
+//! let grain = sim.add_body(&BodySpec::disk(DVec2::new(0.0, 0.2), 0.05, sim.material("glass")?))?;
+//! for _ in 0..200 {
+//!     let report = sim.step()?;
+//!     assert!(report.converged, "{}", report.stop_reason);
+//! }
+//! // The second grain has landed on the first and rests there.
+//! assert!((sim.position(grain).y - 0.15).abs() < 1e-3 && sim.velocity(grain).length() < 1e-2);
+//! assert!(sim.contacts().iter().all(|c| c.impulse[0] >= 0.0));
+//! # Ok::<(), moreau::Error>(())
+//! ```
+//!
+//! [`Simulation::from_scene`] loads a scene file instead.
 
 pub mod backend;
 pub mod cli;
@@ -25,5 +52,23 @@ pub mod structure;
 pub mod sweep;
 pub mod world;
 
+pub use glam;
+pub use glam::DVec2;
 pub use problem::ContactProblem;
+pub use scene::SceneError;
 pub use solvers::{solve, SolveReport, SolverKind, SolverOptions};
+pub use stepping::{BodyError, ContactState, Simulation, StepError, StepReport, StepSettings};
+pub use world::{BodySpec, Effects, Materials, Wall, World};
+
+/// Every error the library returns to a host, by where it arose (each names the problem).
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error(transparent)]
+    Step(#[from] StepError),
+    #[error(transparent)]
+    Body(#[from] BodyError),
+    #[error(transparent)]
+    Problem(#[from] problem::ProblemError),
+}

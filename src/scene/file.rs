@@ -676,7 +676,7 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
     }
     let alert = match file.detection.as_ref().and_then(|d| d.get_ref().alert) {
         Some(a) => a,
-        None => 0.05 * smallest_radius,
+        None => crate::stepping::DEFAULT_ALERT_FRACTION * smallest_radius,
     };
     let settings = StepSettings { h: time.step, theta: time.theta.unwrap_or(0.5), alert, solver: kind, options };
     if let Err(m) = settings.validate() {

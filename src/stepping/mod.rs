@@ -8,5 +8,7 @@ mod projection;
 mod simulation;
 mod warm_start;
 
-pub use simulation::{ContactState, Simulation, StepError, StepReport, StepSettings};
+pub use simulation::{
+    BodyError, ContactState, Simulation, StepError, StepReport, StepSettings, DEFAULT_ALERT_FRACTION,
+};
 pub use warm_start::WarmStart;

@@ -106,16 +106,25 @@ fn detect(
 }
 
 /// Velocities at the start of the step, and free velocities (gravity over the step).
-fn free_velocities(world: &World, dofs: Dofs, h: f64) -> (Vec<f64>, Vec<f64>) {
+fn free_velocities(world: &World, forces: &[(DVec2, f64)], dofs: Dofs, h: f64) -> (Vec<f64>, Vec<f64>) {
     let v_begin = stacked_velocities(world, dofs);
     let mut v_free = v_begin.clone();
+    let s = dofs.per_body();
+    let b = &world.bodies;
     if let Some(g) = world.effects.gravity {
-        let s = dofs.per_body();
-        for k in 0..world.bodies.len() {
-            if world.bodies.inv_mass[k] > 0.0 {
+        for k in 0..b.len() {
+            if b.inv_mass[k] > 0.0 {
                 v_free[s * k] += h * g.x;
                 v_free[s * k + 1] += h * g.y;
             }
+        }
+    }
+    // A host's forces for this step (see `Simulation::apply_force`).
+    for (k, (force, torque)) in forces.iter().enumerate() {
+        v_free[s * k] += h * b.inv_mass[k] * force.x;
+        v_free[s * k + 1] += h * b.inv_mass[k] * force.y;
+        if dofs.rotation {
+            v_free[s * k + 2] += h * b.inv_inertia[k] * torque;
         }
     }
     (v_begin, v_free)
@@ -254,7 +263,7 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
     let detected = detect(&mut sim.detector, &sim.world, alert, (&reach.0, &reach.1));
     let mut detection_seconds = start.elapsed().as_secs_f64();
     // 2. Free velocities.
-    let (v_begin, v_free) = free_velocities(&sim.world, dofs, h);
+    let (v_begin, v_free) = free_velocities(&sim.world, &sim.forces, dofs, h);
     let nc = detected.len();
     let mut report = StepReport {
         step,
@@ -371,6 +380,7 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
     if sim.keep_problem {
         sim.last_problem = problem;
     }
+    sim.forces.clear();
     sim.time += h;
     sim.step_index = step;
     report.detection_seconds = detection_seconds;

@@ -26,7 +26,26 @@ pub struct StepSettings {
     pub options: SolverOptions,
 }
 
+/// A scene's default alert distance, as a fraction of its smallest grain radius.
+pub const DEFAULT_ALERT_FRACTION: f64 = 0.05;
+
 impl StepSettings {
+    /// The settings a scene file gets when it names only its time step: θ = 1/2, an alert
+    /// distance of 5 % of the smallest grain radius of `world` (add the grains first), NLGS to
+    /// 1e-4 (natural-map error) with at most 10,000 sweeps.
+    pub fn for_world(world: &World, h: f64) -> Self {
+        let b = &world.bodies;
+        let smallest =
+            (0..b.len()).filter(|&k| b.inv_mass[k] > 0.0).map(|k| b.radius_of(k)).fold(f64::INFINITY, f64::min);
+        Self {
+            h,
+            theta: 0.5,
+            alert: if smallest.is_finite() { DEFAULT_ALERT_FRACTION * smallest } else { 0.0 },
+            solver: SolverKind::Nlgs,
+            options: SolverOptions { tol: 1e-4, max_iter: 10_000, ..SolverOptions::default() },
+        }
+    }
+
     pub fn validate(&self) -> Result<(), String> {
         if !(self.h.is_finite() && self.h > 0.0) {
             return Err(format!("time step {} must be finite and > 0", self.h));
@@ -104,6 +123,27 @@ pub enum StepError {
     Device { step: usize, message: String },
 }
 
+/// A host's request about a body or a wall that cannot be met.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum BodyError {
+    #[error("body {body} does not exist (the simulation has {count} bodies)")]
+    NoBody { body: usize, count: usize },
+    #[error("material {0} does not exist")]
+    NoMaterial(usize),
+    #[error("material {0:?} does not exist")]
+    NoMaterialNamed(String),
+    #[error("{what} of body {body} must be finite, got {value}")]
+    NotFinite { body: usize, what: &'static str, value: String },
+    #[error("body {0} is fixed: it has no velocity to set and takes no force")]
+    Fixed(usize),
+    #[error("the world was built without the effect rotation: body {0} has no spin")]
+    NoRotation(usize),
+    #[error("a wall with a velocity needs the effect moving_walls")]
+    MovingWall,
+    #[error("{0}")]
+    Invalid(String),
+}
+
 pub struct Simulation {
     pub world: World,
     pub settings: StepSettings,
@@ -122,6 +162,8 @@ pub struct Simulation {
     /// Warnings about the start, from [`Self::check`].
     pub(super) warnings: Vec<String>,
     checked: bool,
+    /// External forces and torques on each body for the next step (empty when none is applied).
+    pub(super) forces: Vec<(DVec2, f64)>,
 }
 
 impl Simulation {
@@ -141,6 +183,7 @@ impl Simulation {
             extent: None,
             warnings: Vec::new(),
             checked: false,
+            forces: Vec::new(),
         })
     }
 
@@ -176,28 +219,103 @@ impl Simulation {
         &self.backend
     }
 
-    /// Adds a body; its density comes from its material.
-    pub fn add_body(&mut self, spec: &BodySpec) -> Result<usize, String> {
-        let density = *self
-            .world
-            .materials
-            .density
-            .get(spec.material)
-            .ok_or_else(|| format!("material {} does not exist", spec.material))?;
-        self.extent = None;
-        self.world.bodies.add(spec, density)
+    /// The simulation a scene file describes (its bodies, walls, materials, effects and step
+    /// settings), on the CPU; `scene.steps` and the outputs are the command line's business.
+    pub fn from_scene(path: &std::path::Path) -> Result<Self, crate::Error> {
+        let scene = crate::scene::load(path)?;
+        Ok(Self::new(scene.world, scene.settings)?)
     }
 
-    pub fn add_wall(&mut self, wall: Wall) -> Result<usize, String> {
+    /// Adds a body; its density comes from its material.
+    pub fn add_body(&mut self, spec: &BodySpec) -> Result<usize, BodyError> {
+        let density = *self.world.materials.density.get(spec.material).ok_or(BodyError::NoMaterial(spec.material))?;
+        self.extent = None;
+        self.world.bodies.add(spec, density).map_err(BodyError::Invalid)
+    }
+
+    pub fn add_wall(&mut self, wall: Wall) -> Result<usize, BodyError> {
         if wall.material >= self.world.materials.len() {
-            return Err(format!("material {} does not exist", wall.material));
+            return Err(BodyError::NoMaterial(wall.material));
         }
         if wall.is_moving() && !self.world.effects.moving_walls {
-            return Err("a wall with a velocity needs the effect moving_walls".into());
+            return Err(BodyError::MovingWall);
         }
         self.extent = None;
         self.world.walls.push(wall);
         Ok(self.world.walls.len() - 1)
+    }
+
+    /// The index of the material called `name`.
+    pub fn material(&self, name: &str) -> Result<usize, BodyError> {
+        self.world.materials.index_of(name).ok_or_else(|| BodyError::NoMaterialNamed(name.to_string()))
+    }
+
+    /// How many bodies there are (indices `0..body_count()`).
+    pub fn body_count(&self) -> usize {
+        self.world.bodies.len()
+    }
+
+    fn body_index(&self, body: usize) -> Result<usize, BodyError> {
+        let count = self.world.bodies.len();
+        if body < count {
+            Ok(body)
+        } else {
+            Err(BodyError::NoBody { body, count })
+        }
+    }
+
+    fn moving_body(&self, body: usize) -> Result<usize, BodyError> {
+        let k = self.body_index(body)?;
+        if self.world.bodies.inv_mass[k] == 0.0 {
+            return Err(BodyError::Fixed(k));
+        }
+        Ok(k)
+    }
+
+    /// Sets a body's velocity (from the next step on).
+    pub fn set_velocity(&mut self, body: usize, velocity: DVec2) -> Result<(), BodyError> {
+        let k = self.moving_body(body)?;
+        finite(k, "velocity", velocity.is_finite(), velocity)?;
+        self.world.bodies.velocity[k] = velocity;
+        Ok(())
+    }
+
+    /// Sets a body's spin (rad/s); needs the effect rotation.
+    pub fn set_spin(&mut self, body: usize, spin: f64) -> Result<(), BodyError> {
+        let k = self.moving_body(body)?;
+        finite(k, "spin", spin.is_finite(), spin)?;
+        if !self.world.bodies.has_rotation() {
+            return Err(BodyError::NoRotation(k));
+        }
+        self.world.bodies.spin[k] = spin;
+        Ok(())
+    }
+
+    /// Applies an impulse `impulse` (N·s) at the world point `at`: the body's velocity and spin
+    /// change at once (the spin only with the effect rotation).
+    pub fn apply_impulse(&mut self, body: usize, impulse: DVec2, at: DVec2) -> Result<(), BodyError> {
+        let k = self.moving_body(body)?;
+        finite(k, "impulse", impulse.is_finite() && at.is_finite(), (impulse, at))?;
+        let b = &mut self.world.bodies;
+        b.velocity[k] += b.inv_mass[k] * impulse;
+        if b.has_rotation() {
+            b.spin[k] += b.inv_inertia[k] * (at - b.position[k]).perp_dot(impulse);
+        }
+        Ok(())
+    }
+
+    /// Adds a force (N) and a torque (N·m, counted only with the effect rotation) on a body
+    /// during the next step only, as gravity acts: in its free velocity, so the contacts
+    /// answer it within the step. Forces on one body add up until that step.
+    pub fn apply_force(&mut self, body: usize, force: DVec2, torque: f64) -> Result<(), BodyError> {
+        let k = self.moving_body(body)?;
+        finite(k, "force", force.is_finite() && torque.is_finite(), (force, torque))?;
+        if self.forces.len() != self.world.bodies.len() {
+            self.forces.resize(self.world.bodies.len(), (DVec2::ZERO, 0.0));
+        }
+        self.forces[k].0 += force;
+        self.forces[k].1 += torque;
+        Ok(())
     }
 
     /// Advances one time step.
@@ -220,12 +338,34 @@ impl Simulation {
         &self.contacts
     }
 
+    /// A body's centre. Panics when `body` is not below [`Self::body_count`], as indexing does.
     pub fn position(&self, body: usize) -> DVec2 {
         self.world.bodies.position[body]
     }
 
+    /// A body's velocity. Panics when `body` is not below [`Self::body_count`].
     pub fn velocity(&self, body: usize) -> DVec2 {
         self.world.bodies.velocity[body]
+    }
+
+    /// A body's angle (0 without the effect rotation). Panics when `body` does not exist.
+    pub fn angle(&self, body: usize) -> f64 {
+        self.world.bodies.angle_of(body)
+    }
+
+    /// A body's spin (0 without the effect rotation). Panics when `body` does not exist.
+    pub fn spin(&self, body: usize) -> f64 {
+        self.world.bodies.spin_of(body)
+    }
+
+    /// Every body's centre, in body order.
+    pub fn positions(&self) -> &[DVec2] {
+        &self.world.bodies.position
+    }
+
+    /// Every body's velocity, in body order.
+    pub fn velocities(&self) -> &[DVec2] {
+        &self.world.bodies.velocity
     }
 
     /// Keep each step's contact problem (for `--dump-problem` and inspection).
@@ -236,5 +376,13 @@ impl Simulation {
     /// The contact problem of the last step, when [`Self::keep_problems`] is on.
     pub fn last_problem(&self) -> Option<&ContactProblem> {
         self.last_problem.as_ref()
+    }
+}
+
+fn finite(body: usize, what: &'static str, ok: bool, value: impl std::fmt::Debug) -> Result<(), BodyError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(BodyError::NotFinite { body, what, value: format!("{value:?}") })
     }
 }

@@ -1,0 +1,115 @@
+//! The Rust API a host code uses (issue: embedding): step settings from the world, a scene loaded
+//! into a simulation, per-body accessors, impulses and forces, and typed errors that name the
+//! problem instead of panicking.
+
+use std::path::Path;
+
+use moreau::world::Interaction;
+use moreau::{BodyError, BodySpec, DVec2, Effects, Materials, Simulation, StepSettings, Wall, World};
+
+/// One disk (radius 0.1, density 1000) on a floor, friction μ, with or without gravity/rotation.
+fn disk_on_floor(mu: f64, gravity: bool, rotation: bool) -> Simulation {
+    let law = Interaction { friction: mu, ..Interaction::default() };
+    let effects = Effects {
+        gravity: gravity.then_some(DVec2::new(0.0, -9.81)),
+        friction: mu > 0.0,
+        rotation,
+        ..Effects::default()
+    };
+    let mut world = World::new(effects, Materials::new(vec!["steel".into()], vec![1000.0], law));
+    world.walls.push(Wall::segment(DVec2::new(-5.0, 0.0), DVec2::new(5.0, 0.0), 0));
+    world.bodies.add(&BodySpec::disk(DVec2::new(0.0, 0.1), 0.1, 0), 1000.0).unwrap();
+    let settings = StepSettings::for_world(&world, 1e-3);
+    Simulation::new(world, settings).unwrap()
+}
+
+#[test]
+fn a_scene_file_loads_into_the_simulation_the_command_line_steps() {
+    let path = Path::new("scenes/pile.toml");
+    let mut from_scene = Simulation::from_scene(path).unwrap();
+    let s = moreau::scene::load(path).unwrap();
+    let mut by_hand = Simulation::new(s.world, s.settings).unwrap();
+    for _ in 0..5 {
+        from_scene.step().unwrap();
+        by_hand.step().unwrap();
+    }
+    let bits =
+        |sim: &Simulation| sim.positions().iter().flat_map(|p| [p.x.to_bits(), p.y.to_bits()]).collect::<Vec<_>>();
+    assert_eq!(bits(&from_scene), bits(&by_hand));
+    let Err(e) = Simulation::from_scene(Path::new("scenes/no_such_scene.toml")) else {
+        panic!("a missing file loaded")
+    };
+    let e = e.to_string();
+    assert!(e.contains("no_such_scene.toml"), "{e}");
+}
+
+#[test]
+fn default_step_settings_take_the_alert_distance_from_the_grains() {
+    let sim = disk_on_floor(0.3, true, false);
+    assert_eq!(sim.settings.alert, moreau::stepping::DEFAULT_ALERT_FRACTION * 0.1);
+    assert_eq!((sim.settings.theta, sim.settings.options.tol), (0.5, 1e-4));
+}
+
+#[test]
+fn a_force_acts_for_one_step_and_the_contacts_answer_it() {
+    // Free flight: one step of force F changes the velocity by h F / m, the next step nothing.
+    let mut sim = disk_on_floor(0.0, false, false);
+    sim.set_velocity(0, DVec2::new(0.0, 1.0)).unwrap();
+    let m = 1000.0 * std::f64::consts::PI * 0.01;
+    sim.apply_force(0, DVec2::new(2.0, 0.0), 0.0).unwrap();
+    sim.apply_force(0, DVec2::new(1.0, 0.0), 0.0).unwrap();
+    sim.step().unwrap();
+    assert!((sim.velocity(0).x - 1e-3 * 3.0 / m).abs() < 1e-12, "{}", sim.velocity(0).x);
+    let v = sim.velocity(0);
+    sim.step().unwrap();
+    assert_eq!(sim.velocity(0), v, "the force lasted more than one step");
+    // On the floor with μ = 0.5, a push below μ m g is held by friction within the step, one
+    // above it slides the disk at (F − μ m g) / m.
+    for (push, expected) in [(0.4, 0.0), (0.8, (0.8 - 0.5) * 9.81)] {
+        let mut sim = disk_on_floor(0.5, true, false);
+        for _ in 0..20 {
+            sim.step().unwrap();
+        }
+        let v0 = sim.velocity(0).x;
+        for _ in 0..100 {
+            sim.apply_force(0, DVec2::new(push * m * 9.81, 0.0), 0.0).unwrap();
+            let r = sim.step().unwrap();
+            assert!(r.converged, "{}", r.stop_reason);
+        }
+        let a = (sim.velocity(0).x - v0) / 0.1;
+        assert!((a - expected).abs() <= 1e-2 * 9.81, "push {push} m g: a = {a}, expected {expected}");
+    }
+}
+
+#[test]
+fn an_impulse_off_centre_spins_the_body() {
+    let mut sim = disk_on_floor(0.0, false, true);
+    let (m, inertia) = (1000.0 * std::f64::consts::PI * 0.01, 0.5 * 1000.0 * std::f64::consts::PI * 0.01 * 0.01);
+    // 1 N·s along x at the top of the disk: v = 1/m, ω = (0.1 ŷ × x̂) / I = −0.1 / I.
+    sim.apply_impulse(0, DVec2::new(1.0, 0.0), DVec2::new(0.0, 0.2)).unwrap();
+    assert!((sim.velocity(0).x - 1.0 / m).abs() < 1e-12);
+    assert!((sim.spin(0) + 0.1 / inertia).abs() < 1e-9, "spin {}", sim.spin(0));
+    sim.set_spin(0, 2.0).unwrap();
+    sim.step().unwrap();
+    assert!((sim.angle(0) - 2e-3).abs() < 1e-12, "angle {}", sim.angle(0));
+}
+
+#[test]
+fn bad_requests_are_named_errors_never_panics() {
+    let mut sim = disk_on_floor(0.3, true, false);
+    assert_eq!(sim.set_velocity(7, DVec2::ZERO), Err(BodyError::NoBody { body: 7, count: 1 }));
+    assert!(matches!(sim.set_velocity(0, DVec2::new(f64::NAN, 0.0)), Err(BodyError::NotFinite { body: 0, .. })));
+    assert!(matches!(sim.apply_force(0, DVec2::new(0.0, f64::INFINITY), 0.0), Err(BodyError::NotFinite { .. })));
+    assert_eq!(sim.set_spin(0, 1.0), Err(BodyError::NoRotation(0)));
+    assert_eq!(sim.material("glass"), Err(BodyError::NoMaterialNamed("glass".into())));
+    assert_eq!(sim.add_body(&BodySpec::disk(DVec2::ZERO, 0.1, 3)), Err(BodyError::NoMaterial(3)));
+    let e = sim.add_body(&BodySpec::disk(DVec2::new(0.0, 1.0), -0.1, 0)).unwrap_err();
+    assert!(e.to_string().contains("radius"), "{e}");
+    let fixed = BodySpec { fixed: true, ..BodySpec::disk(DVec2::new(1.0, 1.0), 0.1, 0) };
+    let k = sim.add_body(&fixed).unwrap();
+    assert_eq!(sim.apply_impulse(k, DVec2::X, DVec2::ZERO), Err(BodyError::Fixed(k)));
+    let moving = Wall { velocity: DVec2::X, ..Wall::segment(DVec2::ZERO, DVec2::X, 0) };
+    assert_eq!(sim.add_wall(moving), Err(BodyError::MovingWall));
+    let e: moreau::Error = BodyError::Fixed(k).into();
+    assert!(e.to_string().contains("is fixed"), "{e}");
+}
