@@ -28,6 +28,17 @@ pub fn chunked_sum(n: usize, term: impl Fn(usize) -> f64 + Sync) -> f64 {
     }
 }
 
+/// Runs `f` on a pool of `threads` threads (0: rayon's global pool, all cores by default), for a
+/// host that sets the thread count per call rather than once per process.
+pub fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> Result<T, String> {
+    if threads == 0 {
+        return Ok(f());
+    }
+    let pool =
+        rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("threads {threads}: {e}"))?;
+    Ok(pool.install(f))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -113,3 +113,32 @@ fn bad_requests_are_named_errors_never_panics() {
     let e: moreau::Error = BodyError::Fixed(k).into();
     assert!(e.to_string().contains("is fixed"), "{e}");
 }
+
+#[test]
+fn removing_a_body_renumbers_the_rest_and_keeps_their_warm_start() {
+    // A column of three disks at rest on the floor; the middle one is taken out.
+    let mut sim = disk_on_floor(0.3, true, true);
+    for k in 1..3 {
+        sim.add_body(&BodySpec::disk(DVec2::new(0.0, 0.1 + 0.2 * k as f64), 0.1, 0)).unwrap();
+    }
+    for _ in 0..200 {
+        assert!(sim.step().unwrap().converged);
+    }
+    assert_eq!(sim.contacts().len(), 3);
+    sim.apply_force(2, DVec2::new(0.0, -1.0), 0.0).unwrap();
+    sim.remove_body(1).unwrap();
+    assert_eq!(sim.body_count(), 2);
+    assert!((sim.position(1).y - 0.5).abs() < 1e-3, "the top disk is now body 1");
+    // The floor contact of body 0 is kept with its impulse; the two involving body 1 are gone.
+    let kept = sim.contacts();
+    assert_eq!(kept.len(), 1);
+    assert!(matches!(kept[0].contact.other, moreau::detection::Antagonist::Wall(0)) && kept[0].contact.i == 0);
+    let report = sim.step().unwrap();
+    assert_eq!(report.warm_started, 1, "the floor contact carries its impulse");
+    // The top disk falls the gap of one diameter and comes to rest on the bottom one.
+    for _ in 0..600 {
+        assert!(sim.step().unwrap().converged);
+    }
+    assert!((sim.position(1).y - 0.3).abs() < 1e-3 && sim.velocity(1).length() < 1e-2, "{}", sim.position(1));
+    assert_eq!(sim.remove_body(2), Err(BodyError::NoBody { body: 2, count: 2 }));
+}

@@ -33,6 +33,18 @@ pub enum DeviceChoice {
     Gpu,
 }
 
+impl DeviceChoice {
+    /// `auto`, `cpu` or `gpu`; the error lists them.
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        match name {
+            "auto" => Ok(Self::Auto),
+            "cpu" => Ok(Self::Cpu),
+            "gpu" => Ok(Self::Gpu),
+            _ => Err(format!("unknown device {name:?} (one of: auto, cpu, gpu)")),
+        }
+    }
+}
+
 /// Where solves run.
 #[derive(Clone)]
 pub enum Device {
@@ -198,6 +210,33 @@ impl Backend {
             }
         }
     }
+}
+
+/// A solve as a host program asks for it, by names: checks the options, chooses the device
+/// (`auto`, `cpu`, `gpu`), and solves on `threads` CPU threads (0: all cores). Returns the
+/// report and the device line ([`Backend::describe`]); errors are the command line's words.
+pub fn solve_by_name(
+    problem: &ContactProblem,
+    solver: &str,
+    device: &str,
+    threads: usize,
+    opts: &SolverOptions,
+    r0: Option<&[f64]>,
+) -> Result<(SolveReport, String), String> {
+    let kind = SolverKind::from_name(solver)?;
+    opts.validate().map_err(|e| e.to_string())?;
+    let choice = DeviceChoice::from_name(device)?;
+    if let Some(r0) = r0 {
+        let n = 2 * problem.n_contacts();
+        if r0.len() != n {
+            return Err(format!("r0 has {} entries, expected {n} (2 per contact)", r0.len()));
+        }
+    }
+    crate::parallel::with_threads(threads, || {
+        let backend = Backend::choose(choice, kind, opts).map_err(|e| e.to_string())?;
+        let report = backend.solve(problem, kind, opts, r0).map_err(|e| e.to_string())?;
+        Ok((report, backend.describe()))
+    })?
 }
 
 /// f32 on the GPU to `max(tol, F32_FLOOR)`, then, if that misses `tol`, f64 on the CPU from the

@@ -9,7 +9,7 @@ use crate::backend::Backend;
 use crate::io::report::{summary_line, SolveOutput};
 use crate::io::siconos::{read_fc2d, write_fc2d, Storage};
 use crate::problem::generate;
-use crate::solvers::{Ordering, SolverKind, SolverOptions, StopCriterion};
+use crate::solvers::{self, Ordering, SolverKind, SolverOptions, StopCriterion};
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 use std::path::PathBuf;
@@ -185,6 +185,11 @@ pub(crate) fn choose_backend(choice: DeviceChoice, solver: SolverKind, opts: &So
     Ok(backend)
 }
 
+/// A solver option error worded as the command line's flag (`--max-iter 0: …`).
+pub(crate) fn option_error(e: solvers::OptionError) -> anyhow::Error {
+    anyhow::anyhow!("--{} {}: {}", e.name.replace('_', "-"), e.value, e.rule)
+}
+
 /// Runs the rest of the command on a rayon pool of `threads` threads (0: all cores).
 pub(crate) fn set_threads(threads: usize) -> Result<()> {
     rayon::ThreadPoolBuilder::new()
@@ -194,21 +199,6 @@ pub(crate) fn set_threads(threads: usize) -> Result<()> {
 }
 
 fn solve_command(a: SolveArgs) -> Result<()> {
-    if !(a.tol.is_finite() && a.tol > 0.0) {
-        bail!("--tol {}: must be finite and > 0", a.tol);
-    }
-    if !(a.omega > 0.0 && a.omega < 2.0) {
-        bail!("--omega {}: the NLGS relaxation must lie in (0, 2)", a.omega);
-    }
-    if !(a.jacobi_omega > 0.0 && a.jacobi_omega.is_finite()) {
-        bail!("--jacobi-omega {}: must be finite and > 0", a.jacobi_omega);
-    }
-    if !(a.latin_k > 0.0 && a.latin_k.is_finite()) {
-        bail!("--latin-k {}: must be finite and > 0", a.latin_k);
-    }
-    if a.max_iter == 0 {
-        bail!("--max-iter must be at least 1");
-    }
     set_threads(a.threads)?;
     let problem = read_fc2d(&a.file)?;
     let opts = SolverOptions {
@@ -225,6 +215,7 @@ fn solve_command(a: SolveArgs) -> Result<()> {
         history_every: a.history_every,
         keep_iterates: false,
     };
+    opts.validate().map_err(option_error)?;
     let backend = choose_backend(a.device, a.solver, &opts)?;
     let report = backend.solve(&problem, a.solver, &opts, None)?;
     let adapter = backend.adapter_name();

@@ -69,6 +69,16 @@ impl SolverKind {
     }
 }
 
+impl SolverKind {
+    /// The solver called `name` (as the command line spells it); the error lists the names.
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        Self::ALL.into_iter().find(|k| k.name() == name).ok_or_else(|| {
+            let names: Vec<&str> = Self::ALL.iter().map(|k| k.name()).collect();
+            format!("unknown solver {name:?} (one of: {})", names.join(", "))
+        })
+    }
+}
+
 impl fmt::Display for SolverKind {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
@@ -147,6 +157,35 @@ impl Default for SolverOptions {
             history_every: 0,
             keep_iterates: false,
         }
+    }
+}
+
+/// A solver option outside its range: its name (as in scene files), its value and the rule.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{name} {value}: {rule}")]
+pub struct OptionError {
+    pub name: &'static str,
+    pub value: String,
+    pub rule: &'static str,
+}
+
+impl SolverOptions {
+    /// Checks every option a solver reads, before any work.
+    pub fn validate(&self) -> Result<(), OptionError> {
+        let positive = "must be finite and > 0";
+        let checks: [(&'static str, f64, bool, &'static str); 4] = [
+            ("tol", self.tol, self.tol.is_finite() && self.tol > 0.0, positive),
+            ("omega", self.omega, self.omega > 0.0 && self.omega < 2.0, "the NLGS relaxation must lie in (0, 2)"),
+            ("jacobi_omega", self.jacobi_omega, self.jacobi_omega.is_finite() && self.jacobi_omega > 0.0, positive),
+            ("latin_k", self.latin_k, self.latin_k.is_finite() && self.latin_k > 0.0, positive),
+        ];
+        if let Some(&(name, value, _, rule)) = checks.iter().find(|c| !c.2) {
+            return Err(OptionError { name, value: value.to_string(), rule });
+        }
+        if self.max_iter == 0 {
+            return Err(OptionError { name: "max_iter", value: "0".into(), rule: "must be at least 1" });
+        }
+        Ok(())
     }
 }
 

@@ -6,7 +6,7 @@ use serde::Serialize;
 use thiserror::Error;
 
 use super::WarmStart;
-use crate::backend::Backend;
+use crate::backend::{Backend, DeviceChoice};
 use crate::detection::{DetectedContact, Detector};
 use crate::problem::cone::ContactStatus;
 use crate::problem::ContactProblem;
@@ -56,13 +56,7 @@ impl StepSettings {
         if !(self.alert.is_finite() && self.alert >= 0.0) {
             return Err(format!("alert distance {} must be finite and >= 0", self.alert));
         }
-        if !(self.options.tol.is_finite() && self.options.tol > 0.0) {
-            return Err(format!("solver tolerance {} must be finite and > 0", self.options.tol));
-        }
-        if self.options.max_iter == 0 {
-            return Err("solver max_iter must be >= 1".into());
-        }
-        Ok(())
+        self.options.validate().map_err(|e| format!("solver {e}"))
     }
 }
 
@@ -164,6 +158,8 @@ pub struct Simulation {
     checked: bool,
     /// External forces and torques on each body for the next step (empty when none is applied).
     pub(super) forces: Vec<(DVec2, f64)>,
+    /// The threads this simulation's steps run on, when the host chose a count.
+    pool: Option<std::sync::Arc<rayon::ThreadPool>>,
 }
 
 impl Simulation {
@@ -184,6 +180,7 @@ impl Simulation {
             warnings: Vec::new(),
             checked: false,
             forces: Vec::new(),
+            pool: None,
         })
     }
 
@@ -211,6 +208,31 @@ impl Simulation {
     pub fn set_backend(&mut self, backend: Backend) -> Result<(), StepError> {
         backend.check(self.settings.solver, &self.settings.options).map_err(|e| StepError::Settings(e.to_string()))?;
         self.backend = backend;
+        Ok(())
+    }
+
+    /// Solves every step on the device `choice` picks for the settings' solve (`auto`: a
+    /// hardware GPU that can do it, else the CPU); returns the device and why, in one line.
+    pub fn choose_device(&mut self, choice: DeviceChoice) -> Result<String, StepError> {
+        let backend = Backend::choose(choice, self.settings.solver, &self.settings.options)
+            .map_err(|e| StepError::Settings(e.to_string()))?;
+        let line = backend.describe();
+        self.backend = backend;
+        Ok(line)
+    }
+
+    /// Runs this simulation's steps on `threads` threads of its own (0: rayon's global pool,
+    /// all cores unless the process chose otherwise). Results depend on the count, not the run.
+    pub fn set_threads(&mut self, threads: usize) -> Result<(), StepError> {
+        self.pool = match threads {
+            0 => None,
+            n => Some(std::sync::Arc::new(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(n)
+                    .build()
+                    .map_err(|e| StepError::Settings(format!("threads {n}: {e}")))?,
+            )),
+        };
         Ok(())
     }
 
@@ -243,6 +265,28 @@ impl Simulation {
         self.extent = None;
         self.world.walls.push(wall);
         Ok(self.world.walls.len() - 1)
+    }
+
+    /// Removes a body: the bodies after it move down one index (as in a `Vec`), its contacts
+    /// are dropped and the others keep their warm start.
+    pub fn remove_body(&mut self, body: usize) -> Result<(), BodyError> {
+        let k = self.body_index(body)?;
+        self.world.bodies.remove(k);
+        if k < self.forces.len() {
+            self.forces.remove(k);
+        }
+        self.contacts = std::mem::take(&mut self.contacts)
+            .into_iter()
+            .filter_map(|mut c| {
+                let (i, other, _) = super::warm_start::key_without_body(c.contact.key(), k)?;
+                (c.contact.i, c.contact.other) = (i, other);
+                Some(c)
+            })
+            .collect();
+        self.warm_start.forget_body(k);
+        self.last_problem = None;
+        self.extent = None;
+        Ok(())
     }
 
     /// The index of the material called `name`.
@@ -321,7 +365,10 @@ impl Simulation {
     /// Advances one time step.
     pub fn step(&mut self) -> Result<StepReport, StepError> {
         self.check()?;
-        super::moreau_jean::step(self)
+        match self.pool.clone() {
+            Some(pool) => pool.install(|| super::moreau_jean::step(self)),
+            None => super::moreau_jean::step(self),
+        }
     }
 
     pub fn time(&self) -> f64 {

@@ -34,7 +34,29 @@ pub struct Recalled {
     pub colours: Option<Vec<Option<u32>>>,
 }
 
+/// `key` after body `removed` is removed: `None` when it involves that body, else with the
+/// indices above it moved down one (the order of keys is kept).
+pub(crate) fn key_without_body(key: Key, removed: usize) -> Option<Key> {
+    let shift = |b: usize| if b > removed { b - 1 } else { b };
+    let other = match key.1 {
+        Antagonist::Body(j) if j == removed => return None,
+        Antagonist::Body(j) => Antagonist::Body(shift(j)),
+        wall => wall,
+    };
+    (key.0 != removed).then(|| (shift(key.0), other, key.2))
+}
+
 impl WarmStart {
+    /// Forgets the contacts of body `k` and renumbers the rest as [`key_without_body`] does; the
+    /// colours are dropped (the next colouring is built afresh).
+    pub fn forget_body(&mut self, k: usize) {
+        self.entries = std::mem::take(&mut self.entries)
+            .into_iter()
+            .filter_map(|(key, r)| key_without_body(key, k).map(|key| (key, r)))
+            .collect();
+        self.colours = None;
+    }
+
     /// Remembers `impulses` (2 per contact) of `contacts` (sorted by key, as detection returns
     /// them), and the colouring the solve used, if any, with the bodies that could move.
     pub fn remember(

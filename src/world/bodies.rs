@@ -133,6 +133,25 @@ impl Bodies {
         }
     }
 
+    /// Removes body `k`; the bodies after it move down one index. (Its polygon, if any, stays
+    /// in `polygons`, unused.)
+    pub fn remove(&mut self, k: usize) {
+        self.shape.remove(k);
+        self.position.remove(k);
+        self.velocity.remove(k);
+        self.mass.remove(k);
+        self.inv_mass.remove(k);
+        self.bounding_radius.remove(k);
+        self.material.remove(k);
+        self.tag.remove(k);
+        if self.rotation {
+            self.angle.remove(k);
+            self.spin.remove(k);
+            self.inertia.remove(k);
+            self.inv_inertia.remove(k);
+        }
+    }
+
     pub fn len(&self) -> usize {
         self.position.len()
     }

@@ -1,0 +1,158 @@
+//! The C interface as a C program uses it: the committed header is what cbindgen makes of
+//! `capi/src/lib.rs`, the programs in `examples/c/` compile with the system C compiler (and the
+//! header with the C++ one) and give the Rust library's answers, and bad input comes back as a
+//! clear message and a non-zero exit, never a crash.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use moreau::io::siconos::read_fc2d;
+use moreau::{Simulation, SolverKind, SolverOptions};
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+}
+
+/// The folder that holds `libmoreau_c.so` (the one this test runs from: `target/<profile>`).
+fn library_dir() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    exe.parent().and_then(Path::parent).unwrap().to_path_buf()
+}
+
+fn generated_header() -> String {
+    let crate_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let config = cbindgen::Config::from_file(crate_dir.join("cbindgen.toml")).unwrap();
+    let mut out = Vec::new();
+    cbindgen::Builder::new()
+        .with_crate(crate_dir)
+        .with_config(config)
+        .generate()
+        .expect("cbindgen reads capi/src/lib.rs")
+        .write(&mut out);
+    String::from_utf8(out).unwrap()
+}
+
+#[test]
+fn the_committed_header_is_what_the_library_exports() {
+    let header = repo().join("include/moreau.h");
+    let generated = generated_header();
+    if std::env::var_os("MOREAU_BLESS").is_some() {
+        std::fs::write(&header, &generated).unwrap();
+    }
+    let committed = std::fs::read_to_string(&header).unwrap_or_default();
+    assert!(
+        committed == generated,
+        "include/moreau.h is out of date with capi/src/lib.rs: run MOREAU_BLESS=1 cargo test --release -p moreau-capi"
+    );
+    for name in ["moreau_solve", "moreau_simulation_step", "moreau_last_error", "MOREAU_STATUS_OK"] {
+        assert!(committed.contains(name), "{name} missing from the header");
+    }
+}
+
+/// Compiles `examples/c/<name>.c` against the header and the library; returns the program.
+fn compile(name: &str) -> PathBuf {
+    let out = std::env::temp_dir().join(format!("moreau_c_{name}_{}", std::process::id()));
+    let lib = library_dir();
+    let status = Command::new("cc")
+        .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-O1", "-I"])
+        .arg(repo().join("include"))
+        .arg(repo().join("examples/c").join(format!("{name}.c")))
+        .arg("-L")
+        .arg(&lib)
+        .arg(format!("-Wl,-rpath,{}", lib.display()))
+        .args(["-lmoreau_c", "-o"])
+        .arg(&out)
+        .status()
+        .expect("a C compiler (cc) on PATH");
+    assert!(status.success(), "examples/c/{name}.c did not compile");
+    out
+}
+
+fn run(program: &Path, args: &[&str]) -> (Option<i32>, String, String) {
+    let Output { status, stdout, stderr } = Command::new(program).args(args).output().unwrap();
+    (status.code(), String::from_utf8_lossy(&stdout).into_owned(), String::from_utf8_lossy(&stderr).into_owned())
+}
+
+/// The number after `key` on a line of `text`.
+fn field(text: &str, key: &str) -> f64 {
+    let mut words = text.split_whitespace();
+    while let Some(w) = words.next() {
+        if w == key {
+            return words.next().unwrap().parse().unwrap();
+        }
+    }
+    panic!("{key} not in {text:?}")
+}
+
+#[test]
+fn the_header_compiles_as_cpp() {
+    let dir = std::env::temp_dir().join(format!("moreau_cpp_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let source = dir.join("main.cpp");
+    std::fs::write(&source, "#include \"moreau.h\"\nint main() { return moreau_version()[0] == '\\0'; }\n").unwrap();
+    let status = Command::new("c++")
+        .args(["-std=c++11", "-Wall", "-Werror", "-fsyntax-only", "-I"])
+        .arg(repo().join("include"))
+        .arg(&source)
+        .status()
+        .expect("a C++ compiler (c++) on PATH");
+    assert!(status.success(), "include/moreau.h does not compile as C++");
+}
+
+#[test]
+fn a_c_program_solves_a_siconos_file_as_the_library_does() {
+    let program = compile("solve_file");
+    let file = repo().join("fuzz/seeds/problem_parser/FC2D_SliderCrankLagrangian00000.dat");
+    let (code, out, err) = run(&program, &[file.to_str().unwrap(), "1e-10"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let problem = read_fc2d(&file).unwrap();
+    let opts = SolverOptions { tol: 1e-10, max_iter: 100_000, ..SolverOptions::default() };
+    let rust = moreau::solve(&problem, SolverKind::Nlgs, &opts, None);
+    assert!(rust.converged);
+    assert_eq!(field(&out, "iterations") as usize, rust.iterations, "{out}");
+    let sum: f64 = rust.r.iter().step_by(2).sum();
+    assert!((field(&out, "sum_rn") - sum).abs() <= 1e-8 * sum.abs(), "{out}: Rust gives {sum:.9e}");
+    assert!(field(&out, "error") <= 1e-10 && out.contains("device: cpu"), "{out}");
+}
+
+#[test]
+fn a_c_program_steps_a_pile_as_the_library_does() {
+    let program = compile("step_scene");
+    let scene = repo().join("scenes/pile.toml");
+    let (code, out, err) = run(&program, &[scene.to_str().unwrap(), "40", "1"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let mut sim = Simulation::from_scene(&scene).unwrap();
+    sim.set_threads(1).unwrap();
+    for _ in 0..40 {
+        assert!(sim.step().unwrap().converged);
+    }
+    let top = sim.positions().iter().map(|p| p.y).fold(0.0, f64::max);
+    let sum: f64 = sim.contacts().iter().map(|c| c.impulse[0]).sum();
+    assert_eq!(field(&out, "bodies") as usize, sim.body_count());
+    assert_eq!(field(&out, "contacts") as usize, sim.contacts().len(), "{out}");
+    assert!((field(&out, "top") - top).abs() < 1e-6, "{out}: Rust's top {top}");
+    assert!((field(&out, "sum_rn") - sum).abs() <= 1e-8 * sum.abs(), "{out}: Rust's sum {sum:.9e}");
+}
+
+#[test]
+fn bad_input_through_c_gets_the_command_lines_message_and_a_non_zero_exit() {
+    let solve = compile("solve_file");
+    let file = repo().join("fuzz/seeds/problem_parser/FC2D_SliderCrankLagrangian00000.dat");
+    let file = file.to_str().unwrap();
+    let cases: [(&[&str], &str); 3] = [
+        (&["/no/such/problem.dat"], "/no/such/problem.dat: No such file"),
+        (&[file, "-1"], "tol -1: must be finite and > 0"),
+        (&[file, "1e-8", "gauss"], "unknown solver \"gauss\" (one of: nlgs,"),
+    ];
+    for (args, message) in cases {
+        let (code, out, err) = run(&solve, args);
+        assert_eq!(code, Some(1), "{args:?}: {out}{err}");
+        assert!(err.contains(message), "{args:?}: {err:?} should say {message:?}");
+    }
+    let bad_scene = std::env::temp_dir().join(format!("moreau_c_bad_{}.toml", std::process::id()));
+    let pile = std::fs::read_to_string(repo().join("scenes/pile.toml")).unwrap();
+    std::fs::write(&bad_scene, pile.replace("density = 2500.0", "density = -2500.0")).unwrap();
+    let (code, _, err) = run(&compile("step_scene"), &[bad_scene.to_str().unwrap(), "1"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("density") && err.contains("-2500"), "{err}");
+}

@@ -1,0 +1,301 @@
+"""moreau: 2D granular contact dynamics (nonsmooth contact dynamics, Moreau–Jean).
+
+Solve one frictional contact problem ``u = W r + q`` (Signorini and Coulomb per contact)::
+
+    import moreau
+    problem = moreau.read_fc2d("problem.dat")          # or moreau.Problem(W, q, mu)
+    result = moreau.solve(problem, solver="nlgs", tol=1e-8)
+    result.r, result.u, result.converged, result.error
+
+or step a granular simulation::
+
+    sim = moreau.Simulation.from_scene("scenes/pile.toml")
+    for _ in range(100):
+        report = sim.step()
+    sim.positions, sim.velocities, sim.contacts()
+
+Arrays are numpy arrays (copies). Errors raise :class:`MoreauError` with the command line's
+message. Solves and steps release the GIL.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from os import PathLike
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _moreau
+from ._moreau import MoreauError, World, __version__
+
+__all__ = [
+    "MoreauError",
+    "Problem",
+    "SolveResult",
+    "Simulation",
+    "World",
+    "read_fc2d",
+    "solve",
+    "__version__",
+]
+
+SOLVERS = ("nlgs", "cpg", "pcpg", "latin", "jacobi", "apgd", "newton", "nlgs-newton")
+
+Path = Union[str, "PathLike[str]"]
+
+
+def _f64(a: Any, name: str) -> bytes:
+    try:
+        arr = np.ascontiguousarray(a, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise MoreauError(f"{name}: not an array of numbers ({e})") from None
+    if arr.ndim != 1:
+        raise MoreauError(f"{name}: expected a 1-D array, got shape {arr.shape}")
+    return arr.astype("<f8", copy=False).tobytes()
+
+
+def _from(b: bytes, dtype: str, columns: int = 1) -> np.ndarray:
+    a = np.frombuffer(b, dtype=dtype).copy()
+    return a.reshape(-1, columns) if columns > 1 else a
+
+
+class Problem:
+    """One step's frictional contact problem ``u = W r + q`` with friction ``mu`` per contact.
+
+    ``W`` is 2n × 2n (a scipy.sparse matrix or a dense array), ``q`` has 2n entries and ``mu``
+    n; vectors interleave per contact, normal first: ``(r_n0, r_t0, r_n1, r_t1, …)``.
+    """
+
+    def __init__(self, W: Any, q: Any, mu: Any) -> None:
+        if isinstance(W, _moreau.Problem):
+            self._inner = W
+            return
+        indptr, indices, data, shape = _csr(W)
+        mu_bytes = _f64(mu, "mu")
+        n = len(mu_bytes) // 8
+        if shape != (2 * n, 2 * n):
+            raise MoreauError(f"W has shape {shape}, expected {(2 * n, 2 * n)} (2 rows per contact, {n} contacts from mu)")
+        self._inner = _moreau.Problem.from_csr(n, indptr, indices, data, _f64(q, "q"), mu_bytes)
+
+    @property
+    def n_contacts(self) -> int:
+        return self._inner.n_contacts
+
+    @property
+    def q(self) -> np.ndarray:
+        return _from(self._inner.q, "<f8")
+
+    @property
+    def mu(self) -> np.ndarray:
+        return _from(self._inner.mu, "<f8")
+
+    @property
+    def matrix_free(self) -> bool:
+        """Whether W is ``B M⁻¹ Bᵀ`` of a simulation step, never assembled."""
+        return self._inner.matrix_free
+
+    def velocity(self, r: Any) -> np.ndarray:
+        """``u = W r + q``."""
+        return _from(self._inner.velocity(_f64(r, "r")), "<f8")
+
+    def write_fc2d(self, path: Path, sparse: bool = True) -> None:
+        """Writes a Siconos fc2d file (17 significant digits)."""
+        self._inner.write_fc2d(path, sparse)
+
+    def __repr__(self) -> str:
+        kind = "matrix-free" if self.matrix_free else "explicit"
+        return f"moreau.Problem({self.n_contacts} contacts, {kind} W)"
+
+
+def _csr(W: Any) -> Tuple[bytes, bytes, bytes, Tuple[int, int]]:
+    """W as CSR bytes (int64 indptr and indices, float64 data) and its shape."""
+    if hasattr(W, "tocsr"):
+        csr = W.tocsr()
+        csr.sum_duplicates()
+        shape = tuple(int(s) for s in csr.shape)
+        return (
+            np.asarray(csr.indptr, dtype="<i8").tobytes(),
+            np.asarray(csr.indices, dtype="<i8").tobytes(),
+            np.asarray(csr.data, dtype="<f8").tobytes(),
+            shape,  # type: ignore[return-value]
+        )
+    dense = np.asarray(W, dtype=np.float64)
+    if dense.ndim != 2:
+        raise MoreauError(f"W: expected a matrix, got shape {dense.shape}")
+    rows, cols = np.nonzero(dense)
+    indptr = np.zeros(dense.shape[0] + 1, dtype="<i8")
+    np.add.at(indptr, rows + 1, 1)
+    return (
+        np.cumsum(indptr).astype("<i8").tobytes(),
+        cols.astype("<i8").tobytes(),
+        dense[rows, cols].astype("<f8").tobytes(),
+        (int(dense.shape[0]), int(dense.shape[1])),
+    )
+
+
+def read_fc2d(path: Path) -> Problem:
+    """Reads a Siconos fc2d problem file (dense or sparse W)."""
+    return Problem(_moreau.read_fc2d(path), None, None)
+
+
+@dataclass
+class SolveResult:
+    """What a solve returns; ``error`` is the f64 natural-map error of ``r``."""
+
+    r: np.ndarray
+    u: np.ndarray
+    converged: bool
+    error: float
+    iterations: int
+    seconds: float
+    w_products: int
+    stop_reason: str
+    solver: str
+    device: str
+    #: (iteration, seconds, error) at each point the error was measured.
+    history: List[Tuple[int, float, float]] = field(default_factory=list)
+
+
+def solve(
+    problem: Problem,
+    solver: str = "nlgs",
+    tol: float = 1e-8,
+    max_iter: int = 10_000,
+    device: str = "cpu",
+    threads: int = 0,
+    r0: Optional[Any] = None,
+    history_every: int = 0,
+) -> SolveResult:
+    """Solves ``problem`` with ``solver`` (one of :data:`SOLVERS`) to the relative natural-map
+    error ``tol``, on ``device`` (``cpu``, ``gpu`` or ``auto``) with ``threads`` CPU threads
+    (0: all cores), from ``r0`` (zero if None). Not converging is not an error: the result
+    says so."""
+    if not isinstance(problem, Problem):
+        raise MoreauError(f"problem: expected a moreau.Problem, got {type(problem).__name__}")
+    if isinstance(max_iter, bool) or int(max_iter) != max_iter or max_iter < 0:
+        raise MoreauError(f"max_iter {max_iter}: must be a whole number >= 1")
+    r0_bytes = None if r0 is None else _f64(r0, "r0")
+    d = _moreau.solve(problem._inner, solver, float(tol), int(max_iter), device, int(threads), r0_bytes, int(history_every))
+    d["r"] = _from(d["r"], "<f8")
+    d["u"] = _from(d["u"], "<f8")
+    return SolveResult(**d)
+
+
+class Simulation:
+    """A granular world advanced one Moreau–Jean step at a time.
+
+    Build one from a scene file (:meth:`from_scene`) or from a :class:`World`::
+
+        world = moreau.World([("glass", 2500.0)], friction=0.3, gravity=(0.0, -9.81))
+        world.add_wall((-1.0, 0.0), (1.0, 0.0), "glass")
+        world.add_disk((0.0, 0.05), 0.05, "glass")
+        sim = moreau.Simulation(world, h=1e-3)
+    """
+
+    def __init__(self, world: World, h: float, theta: float = 0.5, alert: Optional[float] = None,
+                 solver: str = "nlgs", tol: float = 1e-4, max_iter: int = 10_000) -> None:
+        if isinstance(world, _moreau.Simulation):
+            self._inner = world
+            return
+        self._inner = _moreau.Simulation(world, h, theta, alert, solver, tol, max_iter)
+
+    @classmethod
+    def from_scene(cls, path: Path) -> "Simulation":
+        """The simulation a scene file describes (bodies, walls, materials, effects, settings)."""
+        return cls(_moreau.Simulation.from_scene(path), 0.0)
+
+    def set_device(self, device: str = "cpu", threads: int = 0) -> str:
+        """Solves the steps on ``device`` (cpu, gpu, auto) with ``threads`` CPU threads (0: all
+        cores); returns the device chosen and why."""
+        return self._inner.set_device(device, threads)
+
+    def step(self) -> Dict[str, Any]:
+        """Advances one step; returns its report (contacts, iterations, error, converged,
+        stop_reason, max_penetration, seconds, …). A step that blows up raises MoreauError and
+        the simulation keeps its last good state."""
+        return self._inner.step()
+
+    @property
+    def time(self) -> float:
+        return self._inner.time
+
+    @property
+    def steps_done(self) -> int:
+        return self._inner.steps_done
+
+    @property
+    def body_count(self) -> int:
+        return self._inner.body_count
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Centres, N × 2."""
+        return _from(self._inner.positions(), "<f8", 2)
+
+    @property
+    def velocities(self) -> np.ndarray:
+        """Velocities, N × 2."""
+        return _from(self._inner.velocities(), "<f8", 2)
+
+    @property
+    def angles(self) -> np.ndarray:
+        """Angles, N (0 without the effect rotation)."""
+        return _from(self._inner.angles(), "<f8")
+
+    @property
+    def spins(self) -> np.ndarray:
+        """Spins, N (0 without the effect rotation)."""
+        return _from(self._inner.spins(), "<f8")
+
+    def contacts(self) -> Dict[str, np.ndarray]:
+        """The last step's contacts as arrays: ``body`` and ``other`` (K; ``other`` is a wall's
+        index where ``other_is_wall``), ``point``, ``normal`` (from other to body) and
+        ``impulse`` (normal, tangential) K × 2, ``gap`` (K, negative: overlap) and ``status``
+        (K: 0 open, 1 stick, 2 slide with r_t = +μ r_n, 3 slide with r_t = −μ r_n)."""
+        c = self._inner.contacts()
+        return {
+            "body": _from(c["body"], "<i8"),
+            "other": _from(c["other"], "<i8"),
+            "other_is_wall": _from(c["other_is_wall"], "u1").astype(bool),
+            "point": _from(c["point"], "<f8", 2),
+            "normal": _from(c["normal"], "<f8", 2),
+            "impulse": _from(c["impulse"], "<f8", 2),
+            "gap": _from(c["gap"], "<f8"),
+            "status": _from(c["status"], "<u4"),
+        }
+
+    def material(self, name: str) -> int:
+        return self._inner.material(name)
+
+    def set_velocity(self, body: int, velocity: Sequence[float]) -> None:
+        self._inner.set_velocity(body, tuple(velocity))
+
+    def set_spin(self, body: int, spin: float) -> None:
+        self._inner.set_spin(body, spin)
+
+    def apply_impulse(self, body: int, impulse: Sequence[float], at: Sequence[float]) -> None:
+        """An impulse (N·s) at the world point ``at``, applied at once."""
+        self._inner.apply_impulse(body, tuple(impulse), tuple(at))
+
+    def apply_force(self, body: int, force: Sequence[float], torque: float = 0.0) -> None:
+        """A force (N) and a torque (N·m) acting during the next step only."""
+        self._inner.apply_force(body, tuple(force), torque)
+
+    def add_disk(self, center: Sequence[float], radius: float, material: str,
+                 velocity: Sequence[float] = (0.0, 0.0)) -> int:
+        """Adds a disk between steps; returns its index."""
+        return self._inner.add_disk(tuple(center), radius, material, tuple(velocity))
+
+    def remove_body(self, body: int) -> None:
+        """Removes a body; the bodies after it move down one index, its contacts go."""
+        self._inner.remove_body(body)
+
+    def keep_problems(self, keep: bool = True) -> None:
+        """Keep each step's contact problem for :meth:`last_problem`."""
+        self._inner.keep_problems(keep)
+
+    def last_problem(self) -> Optional[Problem]:
+        """The last step's contact problem (matrix-free W), with keep_problems on."""
+        p = self._inner.last_problem()
+        return None if p is None else Problem(p, None, None)

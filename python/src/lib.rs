@@ -1,0 +1,492 @@
+//! `moreau._moreau`: the compiled part of the Python package. Arrays cross as `bytes` of
+//! little-endian f64 (or integers), which `moreau/__init__.py` turns into numpy arrays; every
+//! error is a `moreau.MoreauError` with the library's message. Solves and steps release the
+//! GIL.
+
+use std::path::PathBuf;
+
+use pyo3::create_exception;
+use pyo3::exceptions::PyException;
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict};
+
+use moreau::backend::{solve_by_name, DeviceChoice};
+use moreau::detection::Antagonist;
+use moreau::io::siconos::{read_fc2d, write_fc2d, Storage};
+use moreau::problem::{BlockSparse, ContactProblem, Delassus};
+use moreau::world::Interaction;
+use moreau::{BodySpec, DVec2, Effects, Materials, SolverOptions, StepSettings, Wall};
+
+create_exception!(_moreau, MoreauError, PyException, "An error from moreau; the message names the problem.");
+
+fn error(e: impl ToString) -> PyErr {
+    MoreauError::new_err(e.to_string())
+}
+
+/// `bytes` as little-endian values of `T` (`kind` names it in the error).
+fn values<T: bytemuck::Pod>(bytes: &[u8], name: &str, kind: &str) -> PyResult<Vec<T>> {
+    if !bytes.len().is_multiple_of(std::mem::size_of::<T>()) {
+        return Err(error(format!("{name}: {} bytes is not a whole number of {kind}", bytes.len())));
+    }
+    Ok(bytemuck::pod_collect_to_vec(bytes))
+}
+
+fn floats(bytes: &[u8], name: &str) -> PyResult<Vec<f64>> {
+    values(bytes, name, "float64")
+}
+
+fn indices(bytes: &[u8], name: &str) -> PyResult<Vec<i64>> {
+    values(bytes, name, "int64")
+}
+
+fn to_bytes<'py, T: bytemuck::Pod>(py: Python<'py>, values: &[T]) -> Bound<'py, PyBytes> {
+    PyBytes::new(py, bytemuck::cast_slice(values))
+}
+
+fn vec2(v: (f64, f64)) -> DVec2 {
+    DVec2::new(v.0, v.1)
+}
+
+/// One step's frictional contact problem `u = W r + q`, `mu` per contact.
+#[pyclass(name = "Problem", module = "moreau._moreau", frozen)]
+struct Problem(ContactProblem);
+
+#[pymethods]
+impl Problem {
+    /// `W` as 2n × 2n compressed sparse rows (int64 `indptr`, `indices`; float64 `data`),
+    /// `q` (2n) and `mu` (n), as bytes.
+    #[staticmethod]
+    fn from_csr(n: usize, indptr: &[u8], indices_: &[u8], data: &[u8], q: &[u8], mu: &[u8]) -> PyResult<Self> {
+        let (indptr, columns, values) =
+            (indices(indptr, "indptr")?, indices(indices_, "indices")?, floats(data, "data")?);
+        let rows = 2 * n;
+        if indptr.len() != rows + 1 {
+            return Err(error(format!(
+                "W: indptr has {} entries, expected {} (2 rows per contact, + 1)",
+                indptr.len(),
+                rows + 1
+            )));
+        }
+        let mut entries = Vec::with_capacity(values.len());
+        for row in 0..rows {
+            let (a, b) = (indptr[row], indptr[row + 1]);
+            if a < 0 || a > b || b as usize > values.len().min(columns.len()) {
+                return Err(error(format!("W: indptr is not increasing within the data at row {row}")));
+            }
+            for k in a as usize..b as usize {
+                let col = columns[k];
+                if col < 0 || col as usize >= rows {
+                    return Err(error(format!("W: column {col} of row {row} is not in 0..{rows}")));
+                }
+                entries.push((row, col as usize, values[k]));
+            }
+        }
+        let w = Delassus::Sparse(BlockSparse::from_scalar_entries(n, entries));
+        ContactProblem::new(w, floats(q, "q")?, floats(mu, "mu")?).map(Self).map_err(error)
+    }
+
+    #[getter]
+    fn n_contacts(&self) -> usize {
+        self.0.n_contacts()
+    }
+
+    #[getter]
+    fn q<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
+        to_bytes(py, &self.0.q)
+    }
+
+    #[getter]
+    fn mu<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
+        to_bytes(py, &self.0.mu)
+    }
+
+    /// Whether `W` is matrix-free (`B M⁻¹ Bᵀ` of a simulation step) rather than explicit.
+    #[getter]
+    fn matrix_free(&self) -> bool {
+        matches!(self.0.w, Delassus::MatrixFree(_))
+    }
+
+    /// `W r + q` for `r` given as bytes (2n float64).
+    fn velocity<'py>(&self, py: Python<'py>, r: &[u8]) -> PyResult<Bound<'py, PyBytes>> {
+        let r = floats(r, "r")?;
+        if r.len() != self.0.q.len() {
+            return Err(error(format!("r has {} entries, expected {} (2 per contact)", r.len(), self.0.q.len())));
+        }
+        Ok(to_bytes(py, &self.0.velocity(&r)))
+    }
+
+    /// Writes the problem as a Siconos fc2d file (17 digits; sparse or dense `W`).
+    #[pyo3(signature = (path, sparse = true))]
+    fn write_fc2d(&self, path: PathBuf, sparse: bool) -> PyResult<()> {
+        let storage = if sparse { Storage::Sparse } else { Storage::Dense };
+        write_fc2d(&self.0, storage, &path).map_err(error)
+    }
+}
+
+/// Reads a Siconos fc2d problem file.
+#[pyfunction(name = "read_fc2d")]
+fn read_problem(path: PathBuf) -> PyResult<Problem> {
+    read_fc2d(&path).map(Problem).map_err(error)
+}
+
+/// Solves `problem`; returns a dict of the report (arrays as bytes).
+#[pyfunction]
+#[pyo3(signature = (problem, solver, tol, max_iter, device, threads, r0 = None, history_every = 0))]
+#[allow(clippy::too_many_arguments)]
+fn solve<'py>(
+    py: Python<'py>,
+    problem: &Problem,
+    solver: &str,
+    tol: f64,
+    max_iter: usize,
+    device: &str,
+    threads: usize,
+    r0: Option<&[u8]>,
+    history_every: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let r0 = r0.map(|b| floats(b, "r0")).transpose()?;
+    let opts = SolverOptions { tol, max_iter, history_every, ..SolverOptions::default() };
+    let problem = &problem.0;
+    let (report, device) =
+        py.detach(|| solve_by_name(problem, solver, device, threads, &opts, r0.as_deref())).map_err(error)?;
+    let d = PyDict::new(py);
+    d.set_item("r", to_bytes(py, &report.r))?;
+    d.set_item("u", to_bytes(py, &report.u))?;
+    d.set_item("converged", report.converged)?;
+    d.set_item("error", report.error)?;
+    d.set_item("iterations", report.iterations)?;
+    d.set_item("seconds", report.seconds)?;
+    d.set_item("w_products", report.w_products)?;
+    d.set_item("stop_reason", report.stop_reason)?;
+    d.set_item("solver", report.solver.name())?;
+    d.set_item("device", device)?;
+    let history: Vec<(usize, f64, f64)> = report.history.iter().map(|h| (h.iteration, h.seconds, h.error)).collect();
+    d.set_item("history", history)?;
+    Ok(d)
+}
+
+/// Materials, effects, bodies and walls, gathered before a simulation starts.
+#[pyclass(name = "World", module = "moreau._moreau")]
+struct World(moreau::World);
+
+fn material(world: &moreau::World, name: &str) -> PyResult<usize> {
+    world.materials.index_of(name).ok_or_else(|| error(format!("material {name:?} does not exist")))
+}
+
+#[allow(clippy::too_many_arguments)]
+fn body_spec(
+    world: &moreau::World,
+    mut spec: BodySpec,
+    material_name: &str,
+    angle: f64,
+    velocity: (f64, f64),
+    spin: f64,
+    fixed: bool,
+    tag: u32,
+) -> PyResult<BodySpec> {
+    spec.material = material(world, material_name)?;
+    spec.angle = angle;
+    spec.velocity = vec2(velocity);
+    spec.spin = spin;
+    spec.fixed = fixed;
+    spec.tag = tag;
+    Ok(spec)
+}
+
+#[pymethods]
+impl World {
+    /// `materials`: (name, density) pairs; one contact law for every pair of materials, which
+    /// `set_interaction` changes per pair. An effect is on when its parameter is given.
+    #[new]
+    #[pyo3(signature = (materials, friction = 0.0, restitution = 0.0, cohesion = 0.0, gravity = None, rotation = false, moving_walls = false))]
+    fn new(
+        materials: Vec<(String, f64)>,
+        friction: f64,
+        restitution: f64,
+        cohesion: f64,
+        gravity: Option<(f64, f64)>,
+        rotation: bool,
+        moving_walls: bool,
+    ) -> PyResult<Self> {
+        if materials.is_empty() {
+            return Err(error("a world needs at least one material"));
+        }
+        for (name, density) in &materials {
+            if !(density.is_finite() && *density > 0.0) {
+                return Err(error(format!("material {name:?}: density {density} must be finite and > 0")));
+            }
+        }
+        let law = Interaction { friction, restitution, cohesion };
+        check_law(&law)?;
+        let effects = Effects {
+            gravity: gravity.map(vec2),
+            friction: friction > 0.0,
+            rotation,
+            restitution: restitution > 0.0,
+            cohesion: cohesion > 0.0,
+            moving_walls,
+        };
+        let (names, density) = materials.into_iter().unzip();
+        Ok(Self(moreau::World::new(effects, Materials::new(names, density, law))))
+    }
+
+    /// The contact law between materials `a` and `b`.
+    #[pyo3(signature = (a, b, friction = 0.0, restitution = 0.0, cohesion = 0.0))]
+    fn set_interaction(&mut self, a: &str, b: &str, friction: f64, restitution: f64, cohesion: f64) -> PyResult<()> {
+        let law = Interaction { friction, restitution, cohesion };
+        check_law(&law)?;
+        let (a, b) = (material(&self.0, a)?, material(&self.0, b)?);
+        let e = &mut self.0.effects;
+        e.friction |= friction > 0.0;
+        e.restitution |= restitution > 0.0;
+        e.cohesion |= cohesion > 0.0;
+        self.0.materials.set(a, b, law);
+        Ok(())
+    }
+
+    /// Adds a disk; returns its index.
+    #[pyo3(signature = (center, radius, material, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0))]
+    #[allow(clippy::too_many_arguments)]
+    fn add_disk(
+        &mut self,
+        center: (f64, f64),
+        radius: f64,
+        material: &str,
+        velocity: (f64, f64),
+        spin: f64,
+        fixed: bool,
+        tag: u32,
+    ) -> PyResult<usize> {
+        let spec =
+            body_spec(&self.0, BodySpec::disk(vec2(center), radius, 0), material, 0.0, velocity, spin, fixed, tag)?;
+        self.add(&spec)
+    }
+
+    /// Adds a convex polygon (vertices relative to `center`); returns its index.
+    #[pyo3(signature = (center, vertices, material, angle = 0.0, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0))]
+    #[allow(clippy::too_many_arguments)]
+    fn add_polygon(
+        &mut self,
+        center: (f64, f64),
+        vertices: Vec<(f64, f64)>,
+        material: &str,
+        angle: f64,
+        velocity: (f64, f64),
+        spin: f64,
+        fixed: bool,
+        tag: u32,
+    ) -> PyResult<usize> {
+        let shape = BodySpec::polygon(vec2(center), vertices.into_iter().map(vec2).collect(), 0);
+        let spec = body_spec(&self.0, shape, material, angle, velocity, spin, fixed, tag)?;
+        self.add(&spec)
+    }
+
+    /// Adds a wall segment from `a` to `b` (moving at `velocity` with the effect moving_walls).
+    #[pyo3(signature = (a, b, material, velocity = (0.0, 0.0)))]
+    fn add_wall(&mut self, a: (f64, f64), b: (f64, f64), material: &str, velocity: (f64, f64)) -> PyResult<usize> {
+        let mut wall = Wall::segment(vec2(a), vec2(b), material_index(&self.0, material)?);
+        wall.velocity = vec2(velocity);
+        if wall.is_moving() && !self.0.effects.moving_walls {
+            return Err(error("a wall with a velocity needs the effect moving_walls"));
+        }
+        self.0.walls.push(wall);
+        Ok(self.0.walls.len() - 1)
+    }
+
+    #[getter]
+    fn body_count(&self) -> usize {
+        self.0.bodies.len()
+    }
+}
+
+fn material_index(world: &moreau::World, name: &str) -> PyResult<usize> {
+    material(world, name)
+}
+
+impl World {
+    fn add(&mut self, spec: &BodySpec) -> PyResult<usize> {
+        let density = self.0.materials.density[spec.material];
+        self.0.bodies.add(spec, density).map_err(error)
+    }
+}
+
+fn check_law(law: &Interaction) -> PyResult<()> {
+    for (name, value) in [("friction", law.friction), ("restitution", law.restitution), ("cohesion", law.cohesion)] {
+        if !(value.is_finite() && value >= 0.0) {
+            return Err(error(format!("{name} {value} must be finite and >= 0")));
+        }
+    }
+    Ok(())
+}
+
+/// A world advanced one Moreau–Jean step at a time.
+#[pyclass(name = "Simulation", module = "moreau._moreau")]
+struct Simulation(moreau::Simulation);
+
+#[pymethods]
+impl Simulation {
+    /// A simulation of `world` with time step `h`; the alert distance defaults to 5 % of the
+    /// smallest grain radius and the solver to NLGS at `tol`.
+    #[new]
+    #[pyo3(signature = (world, h, theta = 0.5, alert = None, solver = "nlgs", tol = 1e-4, max_iter = 10_000))]
+    fn new(
+        world: &World,
+        h: f64,
+        theta: f64,
+        alert: Option<f64>,
+        solver: &str,
+        tol: f64,
+        max_iter: usize,
+    ) -> PyResult<Self> {
+        let mut settings = StepSettings::for_world(&world.0, h);
+        settings.theta = theta;
+        settings.alert = alert.unwrap_or(settings.alert);
+        settings.solver = moreau::SolverKind::from_name(solver).map_err(error)?;
+        settings.options = SolverOptions { tol, max_iter, ..settings.options };
+        moreau::Simulation::new(world.0.clone(), settings).map(Self).map_err(error)
+    }
+
+    /// The simulation a scene file describes.
+    #[staticmethod]
+    fn from_scene(path: PathBuf) -> PyResult<Self> {
+        moreau::Simulation::from_scene(&path).map(Self).map_err(error)
+    }
+
+    /// Solves the steps on `device` (auto, cpu, gpu) with `threads` CPU threads (0: all
+    /// cores); returns the device and why it was chosen.
+    #[pyo3(signature = (device = "cpu", threads = 0))]
+    fn set_device(&mut self, device: &str, threads: usize) -> PyResult<String> {
+        let line = self.0.choose_device(DeviceChoice::from_name(device).map_err(error)?).map_err(error)?;
+        self.0.set_threads(threads).map_err(error)?;
+        Ok(line)
+    }
+
+    /// Advances one step; returns its report as a dict.
+    fn step<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let sim = &mut self.0;
+        let report = py.detach(|| sim.step()).map_err(error)?;
+        let json = serde_json::to_string(&report).map_err(error)?;
+        let json_module = py.import("json")?;
+        json_module.call_method1("loads", (json,))?.cast_into::<PyDict>().map_err(|e| error(e.to_string()))
+    }
+
+    #[getter]
+    fn time(&self) -> f64 {
+        self.0.time()
+    }
+
+    #[getter]
+    fn steps_done(&self) -> usize {
+        self.0.steps_done()
+    }
+
+    #[getter]
+    fn body_count(&self) -> usize {
+        self.0.body_count()
+    }
+
+    /// The index of the material called `name`.
+    fn material(&self, name: &str) -> PyResult<usize> {
+        self.0.material(name).map_err(error)
+    }
+
+    /// Centres (2N float64, x then y per body).
+    fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
+        let v: Vec<f64> = self.0.positions().iter().flat_map(|p| p.to_array()).collect();
+        to_bytes(py, &v)
+    }
+
+    fn velocities<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
+        let v: Vec<f64> = self.0.velocities().iter().flat_map(|p| p.to_array()).collect();
+        to_bytes(py, &v)
+    }
+
+    fn angles<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
+        let v: Vec<f64> = (0..self.0.body_count()).map(|k| self.0.angle(k)).collect();
+        to_bytes(py, &v)
+    }
+
+    fn spins<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
+        let v: Vec<f64> = (0..self.0.body_count()).map(|k| self.0.spin(k)).collect();
+        to_bytes(py, &v)
+    }
+
+    /// The last step's contacts: a dict of bytes (body, other: int64; other_is_wall: uint8;
+    /// point, normal, impulse: 2 float64 each; gap: float64; status: uint32).
+    fn contacts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let c = self.0.contacts();
+        let body: Vec<i64> = c.iter().map(|c| c.contact.i as i64).collect();
+        let (other, wall): (Vec<i64>, Vec<u8>) = c
+            .iter()
+            .map(|c| match c.contact.other {
+                Antagonist::Body(j) => (j as i64, 0),
+                Antagonist::Wall(w) => (w as i64, 1),
+            })
+            .unzip();
+        let pairs = |f: &dyn Fn(&moreau::ContactState) -> [f64; 2]| -> Vec<f64> { c.iter().flat_map(f).collect() };
+        let d = PyDict::new(py);
+        d.set_item("body", to_bytes(py, &body))?;
+        d.set_item("other", to_bytes(py, &other))?;
+        d.set_item("other_is_wall", to_bytes(py, &wall))?;
+        d.set_item("point", to_bytes(py, &pairs(&|c| c.contact.point.to_array())))?;
+        d.set_item("normal", to_bytes(py, &pairs(&|c| c.contact.normal.to_array())))?;
+        d.set_item("impulse", to_bytes(py, &pairs(&|c| c.impulse)))?;
+        d.set_item("gap", to_bytes(py, &c.iter().map(|c| c.contact.gap).collect::<Vec<f64>>()))?;
+        d.set_item("status", to_bytes(py, &c.iter().map(|c| c.status.code()).collect::<Vec<u32>>()))?;
+        Ok(d)
+    }
+
+    fn set_velocity(&mut self, body: usize, velocity: (f64, f64)) -> PyResult<()> {
+        self.0.set_velocity(body, vec2(velocity)).map_err(error)
+    }
+
+    fn set_spin(&mut self, body: usize, spin: f64) -> PyResult<()> {
+        self.0.set_spin(body, spin).map_err(error)
+    }
+
+    /// An impulse (N·s) at the world point `at`, applied at once.
+    fn apply_impulse(&mut self, body: usize, impulse: (f64, f64), at: (f64, f64)) -> PyResult<()> {
+        self.0.apply_impulse(body, vec2(impulse), vec2(at)).map_err(error)
+    }
+
+    /// A force (N) and torque (N·m) during the next step only.
+    #[pyo3(signature = (body, force, torque = 0.0))]
+    fn apply_force(&mut self, body: usize, force: (f64, f64), torque: f64) -> PyResult<()> {
+        self.0.apply_force(body, vec2(force), torque).map_err(error)
+    }
+
+    /// Adds a disk between steps; returns its index.
+    #[pyo3(signature = (center, radius, material, velocity = (0.0, 0.0)))]
+    fn add_disk(&mut self, center: (f64, f64), radius: f64, material: &str, velocity: (f64, f64)) -> PyResult<usize> {
+        let mut spec = BodySpec::disk(vec2(center), radius, self.0.material(material).map_err(error)?);
+        spec.velocity = vec2(velocity);
+        self.0.add_body(&spec).map_err(error)
+    }
+
+    /// Removes a body; the bodies after it move down one index.
+    fn remove_body(&mut self, body: usize) -> PyResult<()> {
+        self.0.remove_body(body).map_err(error)
+    }
+
+    /// Keep each step's contact problem, for `last_problem`.
+    fn keep_problems(&mut self, keep: bool) {
+        self.0.keep_problems(keep)
+    }
+
+    /// The last step's contact problem (matrix-free), when `keep_problems(True)` was called.
+    fn last_problem(&self) -> Option<Problem> {
+        self.0.last_problem().cloned().map(Problem)
+    }
+}
+
+#[pymodule]
+fn _moreau(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("MoreauError", m.py().get_type::<MoreauError>())?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_class::<Problem>()?;
+    m.add_class::<World>()?;
+    m.add_class::<Simulation>()?;
+    m.add_function(wrap_pyfunction!(read_problem, m)?)?;
+    m.add_function(wrap_pyfunction!(solve, m)?)?;
+    Ok(())
+}

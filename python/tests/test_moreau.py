@@ -1,0 +1,211 @@
+"""The Python package against the command line and the Rust library: the same answers on the
+same inputs, the same messages on bad ones, arrays of the documented shapes, the GIL released
+during solves."""
+
+import csv
+import json
+import os
+import subprocess
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import moreau
+
+REPO = Path(__file__).resolve().parents[2]
+SEED = REPO / "fuzz/seeds/problem_parser/FC2D_SliderCrankLagrangian00000.dat"
+SHARED = REPO.parent / "shared/data/siconos-fc2d"
+PILE = REPO / "scenes/pile.toml"
+
+
+def cli():
+    """The `moreau` binary built beside this package (MOREAU_BIN overrides)."""
+    path = Path(os.environ.get("MOREAU_BIN", REPO / "target/release/moreau"))
+    if not path.exists():
+        pytest.fail(f"{path} not found: build it with `cargo build --release` (or set MOREAU_BIN)")
+    return str(path)
+
+
+def problem_files():
+    files = [SEED]
+    files += [SHARED / n for n in ("fc2d_granularflowonwall_00667_00000.dat", "fc2d_granularflowonwall_02020_00213.dat")]
+    return [f for f in files if f.exists()]
+
+
+@pytest.mark.parametrize("path", problem_files(), ids=lambda p: p.name)
+@pytest.mark.parametrize("solver", ["nlgs", "pcpg"])
+def test_python_and_the_command_line_give_the_same_r(tmp_path, path, solver):
+    out = tmp_path / "solve.json"
+    args = [cli(), "solve", str(path), "--solver", solver, "--tol", "1e-7", "--max-iter", "3000", "--threads", "1"]
+    subprocess.run(args + ["--device", "cpu", "--out", str(out)], check=True, capture_output=True)
+    from_cli = json.loads(out.read_text())
+    result = moreau.solve(moreau.read_fc2d(path), solver=solver, tol=1e-7, max_iter=3000, threads=1)
+    r_cli = np.array(from_cli["r"])
+    assert result.r.shape == r_cli.shape == (2 * from_cli["contacts"],)
+    assert np.linalg.norm(result.r - r_cli) <= 1e-12 * max(np.linalg.norm(r_cli), 1e-300)
+    assert result.iterations == from_cli["iterations"] and result.converged == from_cli["converged"]
+    assert result.error == pytest.approx(from_cli["error"], rel=1e-9, abs=1e-300)
+
+
+def test_a_problem_from_scipy_and_from_a_dense_matrix_solves_to_tolerance():
+    sparse = pytest.importorskip("scipy.sparse")
+    rng = np.random.default_rng(3)
+    n = 40
+    B = rng.normal(size=(2 * n, 3 * n))
+    W = B @ B.T / (3 * n) + 0.1 * np.eye(2 * n)
+    q = rng.normal(size=2 * n)
+    mu = np.full(n, 0.4)
+    for matrix in (W, sparse.csr_matrix(W), sparse.coo_matrix(W)):
+        problem = moreau.Problem(matrix, q, mu)
+        result = moreau.solve(problem, tol=1e-10, max_iter=20000)
+        assert result.converged and result.error <= 1e-10
+        np.testing.assert_allclose(problem.velocity(result.r), W @ result.r + q, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(result.u, W @ result.r + q, rtol=1e-12, atol=1e-12)
+        rn, rt = result.r[0::2], result.r[1::2]
+        assert np.all(rn >= 0) and np.all(np.abs(rt) <= mu * rn * (1 + 1e-12) + 1e-300)
+    warm = moreau.solve(problem, tol=1e-10, r0=result.r)
+    assert warm.iterations <= 1 and warm.converged
+
+
+def test_a_problem_written_from_python_reads_back_the_same(tmp_path):
+    problem = moreau.read_fc2d(SEED)
+    for sparse in (True, False):
+        path = tmp_path / f"p_{sparse}.dat"
+        problem.write_fc2d(path, sparse=sparse)
+        again = moreau.read_fc2d(path)
+        np.testing.assert_array_equal(again.q, problem.q)
+        np.testing.assert_array_equal(again.mu, problem.mu)
+        r = np.linspace(0.0, 1.0, 2 * problem.n_contacts)
+        np.testing.assert_array_equal(again.velocity(r), problem.velocity(r))
+
+
+def read_steps(path):
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def test_a_scene_stepped_from_python_matches_the_command_line_step_by_step(tmp_path):
+    steps = 40
+    args = [cli(), "run", str(PILE), "--steps", str(steps), "--threads", "1", "--device", "cpu", "--quiet"]
+    subprocess.run(args + ["--out", str(tmp_path)], check=True, capture_output=True)
+    rows = read_steps(tmp_path / "steps.csv")
+    sim = moreau.Simulation.from_scene(PILE)
+    assert sim.set_device("cpu", threads=1).startswith("cpu")
+    for row in rows:
+        report = sim.step()
+        assert report["step"] == int(row["step"])
+        assert report["contacts"] == int(row["contacts"]) and report["iterations"] == int(row["iterations"])
+        assert report["kinetic_energy"] == pytest.approx(float(row["kinetic_energy"]), rel=1e-12, abs=0.0)
+        assert report["max_penetration"] == pytest.approx(float(row["max_penetration"]), rel=1e-12, abs=1e-300)
+    assert sim.steps_done == steps and sim.time == pytest.approx(steps * 2e-3)
+
+
+def test_state_and_contacts_come_back_as_arrays_of_the_documented_shapes():
+    sim = moreau.Simulation.from_scene(PILE)
+    for _ in range(30):
+        assert sim.step()["converged"]
+    n = sim.body_count
+    assert sim.positions.shape == (n, 2) and sim.velocities.shape == (n, 2)
+    assert sim.angles.shape == (n,) and sim.spins.shape == (n,)
+    c = sim.contacts()
+    k = len(c["body"])
+    assert k > 0
+    for name, shape in [("other", (k,)), ("point", (k, 2)), ("normal", (k, 2)), ("impulse", (k, 2)), ("gap", (k,)), ("status", (k,))]:
+        assert c[name].shape == shape, name
+    assert np.all(c["body"] < n) and np.all(c["impulse"][:, 0] >= 0.0) and np.all(c["status"] <= 3)
+    assert np.all(c["other"][~c["other_is_wall"]] < n) and np.all(c["other"][c["other_is_wall"]] < 3)
+    np.testing.assert_allclose(np.linalg.norm(c["normal"], axis=1), 1.0, rtol=1e-12)
+
+
+def test_a_world_built_from_python_lets_a_grain_land_and_rest():
+    world = moreau.World([("glass", 2500.0)], friction=0.3, gravity=(0.0, -9.81))
+    world.add_wall((-1.0, 0.0), (1.0, 0.0), "glass")
+    world.add_disk((0.0, 0.05), 0.05, "glass")
+    sim = moreau.Simulation(world, h=1e-3)
+    grain = sim.add_disk((0.0, 0.2), 0.05, "glass")
+    for _ in range(200):
+        assert sim.step()["converged"]
+    assert abs(sim.positions[grain, 1] - 0.15) < 1e-3 and np.linalg.norm(sim.velocities[grain]) < 1e-2
+    sim.keep_problems()
+    sim.step()
+    problem = sim.last_problem()
+    assert problem.matrix_free and problem.n_contacts == len(sim.contacts()["body"])
+    assert moreau.solve(problem, tol=1e-10).error <= 1e-10
+
+
+def test_a_body_removed_from_python_leaves_the_others_renumbered():
+    sim = moreau.Simulation.from_scene(PILE)
+    for _ in range(10):
+        sim.step()
+    before = sim.positions
+    sim.remove_body(0)
+    assert sim.body_count == len(before) - 1
+    np.testing.assert_array_equal(sim.positions, before[1:])
+    assert sim.step()["converged"]
+    with pytest.raises(moreau.MoreauError, match="does not exist"):
+        sim.remove_body(sim.body_count)
+
+
+def test_a_force_and_a_velocity_set_from_python_act_on_the_next_step():
+    world = moreau.World([("steel", 7800.0)], gravity=(0.0, 0.0))
+    body = world.add_disk((0.0, 0.0), 0.1, "steel")
+    sim = moreau.Simulation(world, h=1e-2)
+    mass = 7800.0 * np.pi * 0.1**2
+    sim.apply_force(body, (mass * 2.0, 0.0))
+    sim.step()
+    assert sim.velocities[body, 0] == pytest.approx(2.0 * 1e-2, rel=1e-12)
+    sim.set_velocity(body, (0.0, 1.0))
+    sim.step()
+    assert sim.positions[body, 1] > 0.0 and sim.velocities[body, 0] == 0.0
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda: moreau.read_fc2d("/no/such/problem.dat"), "/no/such/problem.dat: No such file"),
+        (lambda: moreau.solve(moreau.read_fc2d(SEED), tol=-1.0), "tol -1: must be finite and > 0"),
+        (lambda: moreau.solve(moreau.read_fc2d(SEED), max_iter=0), "max_iter 0: must be at least 1"),
+        (lambda: moreau.solve(moreau.read_fc2d(SEED), solver="gauss"), 'unknown solver "gauss" (one of: nlgs,'),
+        (lambda: moreau.solve(moreau.read_fc2d(SEED), device="tpu"), 'unknown device "tpu"'),
+        (lambda: moreau.solve(moreau.read_fc2d(SEED), r0=[1.0]), "r0 has 1 entries, expected"),
+        (lambda: moreau.Problem(np.eye(2), [0.0, float("nan")], [0.1]), "q[1] is not finite"),
+        (lambda: moreau.Problem(np.eye(2), [0.0, 0.0], [-0.1]), "mu[0] = -0.1 is not a friction coefficient"),
+        (lambda: moreau.Problem(np.eye(3), [0.0, 0.0], [0.1]), "W has shape (3, 3), expected (2, 2)"),
+        (lambda: moreau.Simulation.from_scene("/no/such/scene.toml"), "/no/such/scene.toml"),
+        (lambda: moreau.World([("glass", -1.0)]), "density -1 must be finite and > 0"),
+        (lambda: moreau.Simulation.from_scene(PILE).set_velocity(10_000, (0.0, 0.0)), "body 10000 does not exist"),
+        (lambda: moreau.Simulation.from_scene(PILE).apply_force(0, (float("inf"), 0.0)), "force of body 0 must be finite"),
+        (lambda: moreau.Simulation.from_scene(PILE).add_disk((0.0, 0.1), 0.01, "wood"), 'material "wood" does not exist'),
+    ],
+)
+def test_bad_input_raises_a_moreau_error_naming_the_problem(call, message):
+    with pytest.raises(moreau.MoreauError) as e:
+        call()
+    assert message in str(e.value)
+
+
+def test_python_and_the_command_line_word_a_missing_file_alike():
+    out = subprocess.run([cli(), "solve", "/no/such/problem.dat"], capture_output=True, text=True)
+    assert out.returncode != 0
+    with pytest.raises(moreau.MoreauError) as e:
+        moreau.read_fc2d("/no/such/problem.dat")
+    assert str(e.value) in out.stderr
+
+
+def test_a_solve_releases_the_gil():
+    sparse = pytest.importorskip("scipy.sparse")
+    n = 30_000
+    W = sparse.diags([np.full(2 * n, 4.0), np.full(2 * n - 2, 1.0), np.full(2 * n - 2, 1.0)], [0, 2, -2], format="csr")
+    problem = moreau.Problem(W, -np.ones(2 * n), np.full(n, 0.3))
+    done = []
+    worker = threading.Thread(target=lambda: done.append(moreau.solve(problem, tol=1e-300, max_iter=300, threads=1)))
+    worker.start()
+    ticks = 0
+    while worker.is_alive():
+        ticks += 1
+    worker.join()
+    assert done and done[0].iterations == 300
+    # Holding the GIL for the whole solve would leave this thread a handful of ticks.
+    assert ticks > 1000, ticks
