@@ -142,3 +142,31 @@ fn removing_a_body_renumbers_the_rest_and_keeps_their_warm_start() {
     assert!((sim.position(1).y - 0.3).abs() < 1e-3 && sim.velocity(1).length() < 1e-2, "{}", sim.position(1));
     assert_eq!(sim.remove_body(2), Err(BodyError::NoBody { body: 2, count: 2 }));
 }
+
+#[test]
+fn a_resting_column_has_the_packing_coordination_and_stress_of_statics() {
+    // k disks (radius r, mass m) stacked in a box of width W on a floor at y = 0: the floor
+    // carries k m g, the contact above disk i (k − i) m g; Σ ℓ ⊗ f gives σyy A = m g r k²
+    // with A = W · 2 r k, so σyy = k m g / (2 W); φ = k π r² / (2 r k W) = π r / (2 W).
+    let (k, r, width) = (3usize, 0.1, 1.0);
+    let mut sim = disk_on_floor(0.0, true, false);
+    sim.add_wall(Wall::segment(DVec2::new(-0.5, 0.0), DVec2::new(-0.5, 1.0), 0)).unwrap();
+    sim.add_wall(Wall::segment(DVec2::new(0.5, 0.0), DVec2::new(0.5, 1.0), 0)).unwrap();
+    sim.world.walls[0] = Wall::segment(DVec2::new(-0.5, 0.0), DVec2::new(0.5, 0.0), 0);
+    for i in 1..k {
+        sim.add_body(&BodySpec::disk(DVec2::new(0.0, r + 2.0 * r * i as f64), r, 0)).unwrap();
+    }
+    sim.settings.options.tol = 1e-10;
+    for _ in 0..50 {
+        assert!(sim.step().unwrap().converged);
+    }
+    let m = sim.measures();
+    let mass = 1000.0 * std::f64::consts::PI * r * r;
+    let sigma = k as f64 * mass * 9.81 / (2.0 * width);
+    assert!((m.stress_yy - sigma).abs() < 1e-6 * sigma, "σyy {} vs {sigma}", m.stress_yy);
+    assert!(m.stress_xx.abs() < 1e-9 * sigma && m.stress_xy.abs() < 1e-9 * sigma, "{m:?}");
+    let phi = std::f64::consts::PI * r / (2.0 * width);
+    assert!((m.packing_fraction - phi).abs() < 1e-6, "φ {} vs {phi}", m.packing_fraction);
+    // Bottom and middle disks carry two contacts each; the top one, one: a rattler.
+    assert_eq!((m.coordination, m.rattlers), (2.0, 1), "{m:?}");
+}

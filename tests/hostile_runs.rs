@@ -112,6 +112,36 @@ fn suspicious_starts_are_warned_about() {
     }
 }
 
+#[test]
+fn moreau_check_reports_a_scenes_problems_without_running_it() {
+    let dir = scratch("check");
+    let check = |name: &str, scene: &str, strict: bool| {
+        let path = dir.join(format!("{name}.toml"));
+        std::fs::write(&path, scene).unwrap();
+        let mut cmd = moreau();
+        cmd.arg("check").arg(&path);
+        if strict {
+            cmd.arg("--strict");
+        }
+        let o = cmd.output().unwrap();
+        let text = String::from_utf8_lossy(&o.stdout).into_owned() + &stderr(&o);
+        (o.status.success(), text)
+    };
+    let (ok, text) = check("clean", &disk_scene("1e-3", "0.05", "0.0", "-9.81", true), true);
+    assert!(ok && text.contains("1 bodies, 1 walls") && text.contains("no warning"), "{text}");
+    let overlapping =
+        disk_scene("1e-3", "0.05", "0.0", "-9.81", true) + "[[body]]\ndisk = { center = [0.0, 0.5], radius = 0.05 }\n";
+    let (ok, text) = check("overlap", &overlapping, false);
+    assert!(ok && text.contains("same position (first: bodies 0 and 1") && text.contains("1 warning"), "{text}");
+    let (ok, text) = check("overlap_strict", &overlapping, true);
+    assert!(!ok && text.contains("--strict: 1 warning"), "{text}");
+    let (ok, text) = check("fast", &disk_scene("1e6", "0.01", "0.0", "-9.81", true), false);
+    assert!(!ok && text.contains("smaller time step"), "{text}");
+    let (ok, text) = check("broken", "[time]\nstep = 1e-3\n", false);
+    assert!(!ok && text.contains("steps"), "{text}");
+    assert!(!dir.join("out").exists(), "check writes nothing");
+}
+
 const SMALL: &str = "[time]\nstep = 1e-3\nsteps = 3\n[[material]]\nname = \"g\"\ndensity = 1.0\n\
     [[body]]\ndisk = { center = [0.0, 0.0], radius = 0.1 }\n";
 

@@ -13,10 +13,27 @@ fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
 }
 
-/// The folder that holds `libmoreau_c.so` (the one this test runs from: `target/<profile>`).
+/// The folder that holds `libmoreau_c.so` (the one this test runs from: `target/<profile>`),
+/// built first when missing: `cargo test` builds a cdylib only as a dependency of Rust code.
 fn library_dir() -> PathBuf {
-    let exe = std::env::current_exe().unwrap();
-    exe.parent().and_then(Path::parent).unwrap().to_path_buf()
+    static BUILT: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    BUILT
+        .get_or_init(|| {
+            let exe = std::env::current_exe().unwrap();
+            let dir = exe.parent().and_then(Path::parent).unwrap().to_path_buf();
+            if !dir.join("libmoreau_c.so").exists() {
+                let profile = dir.file_name().unwrap().to_str().unwrap();
+                let profile = if profile == "debug" { "dev" } else { profile };
+                let status = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+                    .args(["build", "--lib", "-p", "moreau-capi", "--profile", profile])
+                    .current_dir(repo())
+                    .status()
+                    .expect("cargo runs");
+                assert!(status.success(), "building libmoreau_c");
+            }
+            dir
+        })
+        .clone()
 }
 
 fn generated_header() -> String {

@@ -216,6 +216,11 @@ class Simulation:
         the simulation keeps its last good state."""
         return self._inner.step()
 
+    def measures(self) -> Dict[str, Any]:
+        """packing_fraction, coordination, rattlers, stress_xx, stress_yy, stress_xy of the
+        current state (definitions in README, "Simulating a scene")."""
+        return self._inner.measures()
+
     @property
     def time(self) -> float:
         return self._inner.time

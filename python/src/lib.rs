@@ -319,6 +319,12 @@ fn check_law(law: &Interaction) -> PyResult<()> {
     Ok(())
 }
 
+/// A serialisable report as a Python dict (through JSON, so the keys are the Rust field names).
+fn json_dict<'py>(py: Python<'py>, value: &impl serde::Serialize) -> PyResult<Bound<'py, PyDict>> {
+    let json = serde_json::to_string(value).map_err(error)?;
+    py.import("json")?.call_method1("loads", (json,))?.cast_into::<PyDict>().map_err(|e| error(e.to_string()))
+}
+
 /// A world advanced one Moreau–Jean step at a time.
 #[pyclass(name = "Simulation", module = "moreau._moreau")]
 struct Simulation(moreau::Simulation);
@@ -365,9 +371,12 @@ impl Simulation {
     fn step<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let sim = &mut self.0;
         let report = py.detach(|| sim.step()).map_err(error)?;
-        let json = serde_json::to_string(&report).map_err(error)?;
-        let json_module = py.import("json")?;
-        json_module.call_method1("loads", (json,))?.cast_into::<PyDict>().map_err(|e| error(e.to_string()))
+        json_dict(py, &report)
+    }
+
+    /// Packing fraction, coordination, rattlers and the mean stress tensor (a dict).
+    fn measures<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        json_dict(py, &self.0.measures())
     }
 
     #[getter]

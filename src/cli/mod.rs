@@ -96,6 +96,14 @@ enum Command {
     Run(run::RunArgs),
     /// Solve one frictional contact problem read from a file.
     Solve(SolveArgs),
+    /// Check a scene file without running it: errors, then warnings about its start (grains
+    /// overlapping, outside or inside walls, a time step too long for the fastest grain).
+    Check {
+        scene: PathBuf,
+        /// Exit non-zero when there is any warning.
+        #[arg(long)]
+        strict: bool,
+    },
     /// CPU vs GPU timings (W product, Jacobi iteration) on lattice packings of growing size.
     Bench(bench::BenchArgs),
     /// Work-precision data of every solver × device: CSV, plots, performance profiles, table.
@@ -141,6 +149,7 @@ fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Run(args) => run::run_command(args),
         Command::Solve(args) => solve_command(args),
+        Command::Check { scene, strict } => check_command(&scene, strict),
         Command::Bench(args) => bench::bench_command(args),
         Command::Sweep(args) => sweep::sweep_command(args),
         Command::FrictionStudy(args) => sweep::friction_command(args),
@@ -176,6 +185,36 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
     }
+}
+
+fn check_command(path: &std::path::Path, strict: bool) -> Result<()> {
+    let scene = match crate::scene::load_any(path)? {
+        crate::scene::AnyScene::Granular(s) => *s,
+        crate::scene::AnyScene::Punch(p) => {
+            println!("{}: a structural (punch) scene; it loads and is valid", p.name);
+            return Ok(());
+        }
+    };
+    let mut warnings = scene.warnings.clone();
+    let (bodies, walls) = (scene.world.bodies.len(), scene.world.walls.len());
+    let (h, steps, name) = (scene.settings.h, scene.steps, scene.name.clone());
+    let alert = scene.settings.alert;
+    let mut sim = crate::Simulation::new(scene.world, scene.settings)?;
+    warnings.extend(sim.check().with_context(|| format!("{}", path.display()))?.iter().cloned());
+    for w in &warnings {
+        println!("warning: {w}");
+    }
+    println!(
+        "{name}: {bodies} bodies, {walls} walls, h = {h:e}, {steps} steps, alert {alert:.3e}: {}",
+        match warnings.len() {
+            0 => "no warning".to_string(),
+            n => format!("{n} warning(s)"),
+        }
+    );
+    if strict && !warnings.is_empty() {
+        bail!("--strict: {} warning(s) about {}", warnings.len(), path.display());
+    }
+    Ok(())
 }
 
 /// Picks the device for solves of `solver` with `opts` (the backend decides) and says which.

@@ -8,6 +8,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use super::punch::{run_punch, PunchOverrides};
 use super::{choose_backend, set_threads, DeviceChoice};
+use crate::io::checkpoint::{fingerprint, read_checkpoint, write_checkpoint};
 use crate::io::run_output::{RunOutput, RunSummary};
 use crate::io::siconos::{write_fc2d, Storage};
 use crate::scene;
@@ -18,9 +19,13 @@ use crate::stepping::Simulation;
 pub struct RunArgs {
     /// Scene file (TOML).
     scene: PathBuf,
-    /// Number of steps (default: the scene's).
+    /// Number of steps (default: the scene's; after --restart, those left to the scene's last).
     #[arg(long)]
     steps: Option<usize>,
+    /// Go on from a checkpoint of this scene file (`[output] checkpoint_every`): the steps
+    /// after it are those the first run would have taken (same solver, threads and device).
+    #[arg(long)]
+    restart: Option<PathBuf>,
     /// Solver of every step (default: the scene's).
     #[arg(long, value_enum)]
     solver: Option<SolverKind>,
@@ -77,12 +82,15 @@ pub fn run_command(a: RunArgs) -> Result<()> {
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
-    if let Some(s) = a.steps {
-        if s == 0 {
-            bail!("--steps must be at least 1");
-        }
-        scene.steps = s;
-    }
+    let restart = a.restart.as_ref().map(|path| read_checkpoint(path, &a.scene)).transpose()?;
+    let start = restart.as_ref().map_or(0, |c| c.steps_done);
+    let steps = match a.steps {
+        Some(0) => bail!("--steps must be at least 1"),
+        Some(s) => s,
+        None if start < scene.steps => scene.steps - start,
+        None => bail!("the checkpoint is at step {start}, the scene's last: give --steps to go further"),
+    };
+    let last = start + steps;
     if let Some(s) = a.solver {
         scene.settings.solver = s;
     }
@@ -102,26 +110,31 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         scene.settings.options.max_iter = m;
     }
     set_threads(a.threads)?;
-    let steps = scene.steps;
     let vtk_every = match (a.vtk_every, scene.output.vtk) {
         (Some(n), _) => n,
         (None, true) => scene.output.every,
         (None, false) => 0,
     };
-    if let Some(&late) = a.dump_problem.iter().find(|&&k| k == 0 || k > steps) {
-        bail!("--dump-problem {late}: the run has steps 1 to {steps}");
+    let first = start + 1;
+    if let Some(&late) = a.dump_problem.iter().find(|&&k| k < first || k > last) {
+        bail!("--dump-problem {late}: the run has steps {first} to {last}");
     }
     let picture_step = match (a.picture_step, scene.output.picture_step) {
-        (Some(k), _) if k == 0 || k > steps => bail!("--picture-step {k}: the run has steps 1 to {steps}"),
+        (Some(k), _) if k < first || k > last => bail!("--picture-step {k}: the run has steps {first} to {last}"),
         (Some(k), _) => k,
-        (None, Some(k)) if k > steps => {
-            eprintln!("warning: the scene's picture_step {k} is past the last step: the picture is of step {steps}");
-            steps
+        (None, Some(k)) if k > last || k < first => {
+            eprintln!("warning: the scene's picture_step {k} is outside steps {first} to {last}: the picture is of step {last}");
+            last
         }
-        (None, k) => k.unwrap_or(steps),
+        (None, k) => k.unwrap_or(last),
     };
     let backend = choose_backend(a.device, scene.settings.solver, &scene.settings.options)?;
-    let out_dir = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.name));
+    let default_dir = match start {
+        0 => scene.name.clone(),
+        k => format!("{}_from_{k}", scene.name),
+    };
+    let out_dir = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(default_dir));
+    let fingerprint = fingerprint(&std::fs::read(&a.scene).with_context(|| format!("reading {}", a.scene.display()))?);
     let mut summary = RunSummary {
         scene: scene.name.clone(),
         device: match backend.adapter_name() {
@@ -147,8 +160,14 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         summary.solver,
         summary.tol
     );
+    let scene_name = scene.name.clone();
+    let checkpoint_every = scene.output.checkpoint_every;
     let mut sim = Simulation::new(scene.world, scene.settings)?;
     sim.set_backend(backend)?;
+    if let Some(c) = &restart {
+        sim.restore(c)?;
+        eprintln!("restarting from step {start} (t = {}) of {}", c.time, a.restart.as_ref().unwrap().display());
+    }
     for w in sim.check().with_context(|| format!("checking {}", a.scene.display()))? {
         eprintln!("warning: {w}");
     }
@@ -174,13 +193,13 @@ pub fn run_command(a: RunArgs) -> Result<()> {
                 output.vtk(&sim)?;
                 output.finish(&summary)?;
                 let kept = match sim.steps_done() {
-                    0 => "the initial state (VTK)".to_string(),
-                    k => format!("the outputs of steps 1 to {k} and the state after step {k} (VTK)"),
+                    k if k == start => "the initial state (VTK)".to_string(),
+                    k => format!("the outputs of steps {first} to {k} and the state after step {k} (VTK)"),
                 };
                 bail!("{}: {e}\n{kept} are in {}", a.scene.display(), out_dir.display());
             }
         };
-        output.record(&report)?;
+        output.record(&report, &sim.measures())?;
         summary.add(&report);
         if !report.converged && summary.unconverged_steps <= WARNINGS_SHOWN {
             bar.suspend(|| {
@@ -206,7 +225,12 @@ pub fn run_command(a: RunArgs) -> Result<()> {
                 None => bar.suspend(|| eprintln!("warning: step {} has no contact: no problem to dump", report.step)),
             }
         }
-        if vtk_every > 0 && (report.step % vtk_every == 0 || report.step == steps) {
+        if checkpoint_every > 0 && report.step % checkpoint_every == 0 {
+            let mut c = sim.checkpoint();
+            (c.scene, c.scene_fingerprint) = (scene_name.clone(), fingerprint.clone());
+            write_checkpoint(&c, &output.dir.join(format!("checkpoint_{:06}.json", report.step)))?;
+        }
+        if vtk_every > 0 && (report.step % vtk_every == 0 || report.step == last) {
             output.vtk(&sim)?;
         }
         if report.step == picture_step {

@@ -1,6 +1,7 @@
 //! Files in and out: Siconos fc2d problems, JSON solve reports, simulation outputs (steps.csv,
 //! summary.json, VTK time series, PNG pictures).
 
+pub mod checkpoint;
 pub mod picture;
 pub mod plots;
 pub mod punch_output;

@@ -8,7 +8,7 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 
 use crate::solvers::StopReason;
-use crate::stepping::{Simulation, StepReport};
+use crate::stepping::{Measures, Simulation, StepReport};
 
 /// One row of `steps.csv`.
 #[derive(Serialize)]
@@ -28,6 +28,12 @@ struct Row {
     max_penetration: f64,
     kinetic_energy: f64,
     potential_energy: f64,
+    packing_fraction: f64,
+    coordination: f64,
+    rattlers: usize,
+    stress_xx: f64,
+    stress_yy: f64,
+    stress_xy: f64,
     seconds: f64,
     detection_seconds: f64,
     solve_seconds: f64,
@@ -165,7 +171,8 @@ impl RunOutput {
         Ok((Self { dir: dir.to_path_buf(), csv, grains: Vec::new(), contacts: Vec::new(), walls: Vec::new() }, removed))
     }
 
-    pub fn record(&mut self, r: &StepReport) -> Result<()> {
+    /// One row of steps.csv: the step's report and the measures of the state it left.
+    pub fn record(&mut self, r: &StepReport, m: &Measures) -> Result<()> {
         self.csv.serialize(Row {
             step: r.step,
             time: r.time,
@@ -182,6 +189,12 @@ impl RunOutput {
             max_penetration: r.max_penetration,
             kinetic_energy: r.kinetic_energy,
             potential_energy: r.potential_energy,
+            packing_fraction: m.packing_fraction,
+            coordination: m.coordination,
+            rattlers: m.rattlers,
+            stress_xx: m.stress_xx,
+            stress_yy: m.stress_yy,
+            stress_xy: m.stress_xy,
             seconds: r.seconds,
             detection_seconds: r.detection_seconds,
             solve_seconds: r.solve_seconds,
@@ -222,6 +235,7 @@ fn is_run_output(name: &str) -> bool {
         || numbered("walls_", ".vtu")
         || numbered("state_", ".png")
         || numbered("problem_", ".dat")
+        || numbered("checkpoint_", ".json")
 }
 
 fn clear_earlier_run(dir: &Path) -> Result<usize> {
@@ -240,7 +254,14 @@ fn clear_earlier_run(dir: &Path) -> Result<usize> {
 mod tests {
     #[test]
     fn only_files_named_as_a_run_names_them_are_cleared() {
-        for name in ["steps.csv", "grains_000010.vtu", "state_000300.png", "problem_000001.dat", "walls.pvd"] {
+        for name in [
+            "steps.csv",
+            "grains_000010.vtu",
+            "state_000300.png",
+            "problem_000001.dat",
+            "walls.pvd",
+            "checkpoint_000020.json",
+        ] {
             assert!(super::is_run_output(name), "{name}");
         }
         for name in ["notes.txt", "grains_.vtu", "grains_12a.vtu", "my_steps.csv", "state_1.png.bak"] {

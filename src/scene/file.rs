@@ -115,6 +115,7 @@ struct OutputSpec {
     every: Option<usize>,
     vtk: Option<bool>,
     picture_step: Option<usize>,
+    checkpoint_every: Option<usize>,
 }
 
 #[derive(Deserialize, Default, Clone, Copy)]
@@ -697,6 +698,7 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         every: output.and_then(|o| o.every).unwrap_or(1),
         vtk: output.and_then(|o| o.vtk).unwrap_or(false),
         picture_step: output.and_then(|o| o.picture_step),
+        checkpoint_every: output.and_then(|o| o.checkpoint_every).unwrap_or(0),
     };
     Ok(Scene {
         name: super::scene_name(&cx, file.name.as_ref(), origin, "scene")?,

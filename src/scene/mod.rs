@@ -24,6 +24,8 @@ pub struct OutputSettings {
     pub vtk: bool,
     /// Step whose picture (grains and force chains) is written as PNG; `None`: the last step.
     pub picture_step: Option<usize>,
+    /// Write a checkpoint (`checkpoint_NNNNNN.json`) every this many steps (0: never).
+    pub checkpoint_every: usize,
 }
 
 /// A loaded scene, ready to simulate.

@@ -6,12 +6,15 @@
 use crate::detection::{Antagonist, DetectedContact};
 use crate::problem::colouring::Colouring;
 
-type Key = (usize, Antagonist, u64);
+pub(crate) type Key = (usize, Antagonist, u64);
+
+/// A contact's key and impulse.
+pub(crate) type Entry = (Key, [f64; 2]);
 
 /// Last step's impulses and colours, sorted by contact key.
 #[derive(Default, Clone, Debug)]
 pub struct WarmStart {
-    entries: Vec<(Key, [f64; 2])>,
+    entries: Vec<Entry>,
     colours: Option<Colours>,
 }
 
@@ -97,6 +100,27 @@ impl WarmStart {
             }
         }
         Recalled { impulses, matched, colours: kept }
+    }
+
+    /// The entries (key and impulse, sorted by key): what a checkpoint saves, with
+    /// [`Self::colours`].
+    pub(crate) fn entries(&self) -> &[Entry] {
+        &self.entries
+    }
+
+    /// Each entry's colour and the moving mask they were given with, if kept.
+    pub(crate) fn colours(&self) -> Option<(&[u32], &[bool])> {
+        self.colours.as_ref().map(|c| (c.of_entry.as_slice(), c.moving.as_slice()))
+    }
+
+    /// The warm start [`Self::entries`] and [`Self::colours`] describe (entries sorted by key; one colour per entry).
+    pub(crate) fn from_parts(entries: Vec<Entry>, colours: Option<(Vec<u32>, Vec<bool>)>) -> Self {
+        debug_assert!(entries.windows(2).all(|w| w[0].0 <= w[1].0));
+        let colours = colours.map(|(of_entry, moving)| {
+            debug_assert_eq!(of_entry.len(), entries.len());
+            Colours { of_entry, moving }
+        });
+        Self { entries, colours }
     }
 
     pub fn len(&self) -> usize {

@@ -1,0 +1,53 @@
+//! Checkpoint files (`checkpoint_NNNNNN.json`): a [`Checkpoint`] as JSON, every number written
+//! so that it reads back to the same bits, and a fingerprint of the scene file it belongs to.
+
+use std::path::Path;
+
+use thiserror::Error;
+
+use crate::stepping::Checkpoint;
+
+#[derive(Debug, Error)]
+pub enum CheckpointError {
+    #[error("{path}: {cause}")]
+    Io { path: String, cause: std::io::Error },
+    #[error("{path}: not a moreau checkpoint: {cause}")]
+    Format { path: String, cause: serde_json::Error },
+    #[error(
+        "{path} was written by scene {scene:?} from a file with fingerprint {written}; {scene_file} has {now}: the scene file changed, or it is another scene"
+    )]
+    OtherScene { path: String, scene: String, written: String, scene_file: String, now: String },
+}
+
+/// FNV-1a (64 bits) of a scene file's bytes: a checkpoint is applied only to the file it came
+/// from.
+pub fn fingerprint(bytes: &[u8]) -> String {
+    let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3));
+    format!("fnv1a64:{hash:016x}")
+}
+
+pub fn write_checkpoint(c: &Checkpoint, path: &Path) -> Result<(), CheckpointError> {
+    let json = serde_json::to_string(c).expect("a checkpoint serialises");
+    std::fs::write(path, json).map_err(|cause| CheckpointError::Io { path: path.display().to_string(), cause })
+}
+
+/// Reads a checkpoint and checks that it belongs to the scene file `scene` (by fingerprint).
+pub fn read_checkpoint(path: &Path, scene: &Path) -> Result<Checkpoint, CheckpointError> {
+    let p = path.display().to_string();
+    let text = std::fs::read(path).map_err(|cause| CheckpointError::Io { path: p.clone(), cause })?;
+    let c: Checkpoint =
+        serde_json::from_slice(&text).map_err(|cause| CheckpointError::Format { path: p.clone(), cause })?;
+    let scene_bytes =
+        std::fs::read(scene).map_err(|cause| CheckpointError::Io { path: scene.display().to_string(), cause })?;
+    let now = fingerprint(&scene_bytes);
+    if c.scene_fingerprint != now {
+        return Err(CheckpointError::OtherScene {
+            path: p,
+            scene: c.scene.clone(),
+            written: c.scene_fingerprint.clone(),
+            scene_file: scene.display().to_string(),
+            now,
+        });
+    }
+    Ok(c)
+}

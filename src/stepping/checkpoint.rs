@@ -1,0 +1,202 @@
+//! What a simulation needs to go on later exactly as it would have: the moving state of bodies
+//! and walls, the time, and what one step hands to the next (impulses for the warm start and the
+//! colours of the contact graph). Shapes, masses, materials and settings come from the scene
+//! again; a checkpoint names the scene it came from, so it is not applied to another.
+
+use serde::{Deserialize, Serialize};
+
+use super::warm_start::{Key, WarmStart};
+use super::{Simulation, StepError};
+use crate::detection::Antagonist;
+
+/// The state of a [`Simulation`] between two steps (serialisable: `io::checkpoint` writes it).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Checkpoint {
+    /// Format version, for readers of old files.
+    pub format: u32,
+    /// The scene's name and a fingerprint of its file (`io::checkpoint::fingerprint`), set by
+    /// whoever knows the file.
+    pub scene: String,
+    pub scene_fingerprint: String,
+    pub steps_done: usize,
+    pub time: f64,
+    pub position: Vec<[f64; 2]>,
+    pub velocity: Vec<[f64; 2]>,
+    /// Empty without the effect rotation.
+    pub angle: Vec<f64>,
+    pub spin: Vec<f64>,
+    pub walls: Vec<WallState>,
+    /// Last step's contacts, sorted by key, with impulse and colour.
+    pub contacts: Vec<CarriedContact>,
+    /// Which bodies could move when the colours were given (absent: no colours).
+    pub moving: Option<Vec<bool>>,
+}
+
+pub const CHECKPOINT_FORMAT: u32 = 1;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WallState {
+    pub center: [f64; 2],
+    pub angle: f64,
+    pub velocity: [f64; 2],
+    pub spin: f64,
+}
+
+/// One contact carried to the next step: body, antagonist (`other_body` or `other_wall`),
+/// feature, impulse and, when last step's solve coloured the graph, colour.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CarriedContact {
+    pub body: usize,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub other_body: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub other_wall: Option<usize>,
+    pub feature: u64,
+    pub impulse: [f64; 2],
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub colour: Option<u32>,
+}
+
+impl CarriedContact {
+    fn key(&self) -> Result<Key, String> {
+        let other = match (self.other_body, self.other_wall) {
+            (Some(j), None) => Antagonist::Body(j),
+            (None, Some(w)) => Antagonist::Wall(w),
+            _ => return Err(format!("contact of body {}: give exactly one of other_body, other_wall", self.body)),
+        };
+        Ok((self.body, other, self.feature))
+    }
+}
+
+impl Simulation {
+    /// The state to go on from later (the scene fields are left empty for the caller).
+    pub fn checkpoint(&self) -> Checkpoint {
+        let b = &self.world.bodies;
+        let (entries, colours) = (self.warm_start.entries(), self.warm_start.colours());
+        let contacts = entries
+            .iter()
+            .enumerate()
+            .map(|(e, &((body, other, feature), impulse))| CarriedContact {
+                body,
+                other_body: if let Antagonist::Body(j) = other { Some(j) } else { None },
+                other_wall: if let Antagonist::Wall(w) = other { Some(w) } else { None },
+                feature,
+                impulse,
+                colour: colours.map(|(of_entry, _)| of_entry[e]),
+            })
+            .collect();
+        Checkpoint {
+            format: CHECKPOINT_FORMAT,
+            scene: String::new(),
+            scene_fingerprint: String::new(),
+            steps_done: self.step_index,
+            time: self.time,
+            position: b.position.iter().map(|p| p.to_array()).collect(),
+            velocity: b.velocity.iter().map(|v| v.to_array()).collect(),
+            angle: b.angle.clone(),
+            spin: b.spin.clone(),
+            walls: self
+                .world
+                .walls
+                .iter()
+                .map(|w| WallState {
+                    center: w.center.to_array(),
+                    angle: w.angle,
+                    velocity: w.velocity.to_array(),
+                    spin: w.spin,
+                })
+                .collect(),
+            contacts,
+            moving: colours.map(|(_, moving)| moving.to_vec()),
+        }
+    }
+
+    /// Goes on from `c`: the next step is the one after `c.steps_done`, exactly as it would
+    /// have been in the run that wrote it (same solver, thread count and device). The world
+    /// must be the one it came from (same bodies and walls, in order); sizes and values are
+    /// checked, and nothing changes when the checkpoint is refused.
+    pub fn restore(&mut self, c: &Checkpoint) -> Result<(), StepError> {
+        let refused = |m: String| StepError::Settings(format!("checkpoint: {m}"));
+        let refuse = |m: String| Err(refused(m));
+        let (n, walls) = (self.world.bodies.len(), self.world.walls.len());
+        if c.format != CHECKPOINT_FORMAT {
+            return refuse(format!("format {} is not {CHECKPOINT_FORMAT}", c.format));
+        }
+        let rotation = if self.world.bodies.has_rotation() { n } else { 0 };
+        let sizes = [
+            ("position", c.position.len(), n),
+            ("velocity", c.velocity.len(), n),
+            ("angle", c.angle.len(), rotation),
+            ("spin", c.spin.len(), rotation),
+            ("walls", c.walls.len(), walls),
+        ];
+        if let Some((what, got, expected)) = sizes.into_iter().find(|s| s.1 != s.2) {
+            return refuse(format!("{what} has {got} entries, the scene {expected}"));
+        }
+        let finite = c.time.is_finite()
+            && c.position.iter().chain(&c.velocity).flatten().all(|x| x.is_finite())
+            && c.angle.iter().chain(&c.spin).all(|x| x.is_finite())
+            && c.walls
+                .iter()
+                .all(|w| w.center.iter().chain(&w.velocity).chain([&w.angle, &w.spin]).all(|x| x.is_finite()));
+        if !finite {
+            return refuse("a value is not finite".into());
+        }
+        let keys = c.contacts.iter().map(CarriedContact::key).collect::<Result<Vec<_>, _>>().map_err(refused)?;
+        if let Some(bad) = keys.iter().find(|k| {
+            k.0 >= n || matches!(k.1, Antagonist::Body(j) if j >= n) || matches!(k.1, Antagonist::Wall(w) if w >= walls)
+        }) {
+            return refuse(format!("a contact names body {} or {:?}, which the scene lacks", bad.0, bad.1));
+        }
+        if !keys.windows(2).all(|w| w[0] <= w[1]) {
+            return refuse("contacts are not sorted by (body, antagonist, feature)".into());
+        }
+        let colours = match (&c.moving, c.contacts.iter().map(|x| x.colour).collect::<Option<Vec<u32>>>()) {
+            (Some(moving), Some(of_entry)) if moving.len() == n => Some((of_entry, moving.clone())),
+            (None, _) => None,
+            _ => return refuse("colours need one per contact and a moving mask of one per body".into()),
+        };
+        if let Some((of_entry, moving)) = &colours {
+            if let Some(why) = improper_colour(&keys, of_entry, moving) {
+                return refuse(why);
+            }
+        }
+        let entries = keys.into_iter().zip(c.contacts.iter().map(|x| x.impulse)).collect();
+        let b = &mut self.world.bodies;
+        b.position = c.position.iter().map(|&p| p.into()).collect();
+        b.velocity = c.velocity.iter().map(|&v| v.into()).collect();
+        b.angle = c.angle.clone();
+        b.spin = c.spin.clone();
+        for (wall, s) in self.world.walls.iter_mut().zip(&c.walls) {
+            (wall.center, wall.angle, wall.velocity, wall.spin) = (s.center.into(), s.angle, s.velocity.into(), s.spin);
+        }
+        self.warm_start = WarmStart::from_parts(entries, colours);
+        (self.time, self.step_index) = (c.time, c.steps_done);
+        self.contacts.clear();
+        self.forces.clear();
+        self.last_problem = None;
+        self.extent = None;
+        Ok(())
+    }
+}
+
+/// Why `colour` (one per contact) is not a proper colouring of `keys` for the bodies that move:
+/// a colour past the number of contacts, or two contacts of one colour on one moving body.
+fn improper_colour(keys: &[Key], colour: &[u32], moving: &[bool]) -> Option<String> {
+    if let Some(c) = colour.iter().find(|&&c| c as usize >= colour.len()) {
+        return Some(format!("colour {c} is not below the number of contacts"));
+    }
+    let mut touched: Vec<(u32, usize)> = keys
+        .iter()
+        .zip(colour)
+        .flat_map(|(k, &c)| {
+            let other = if let Antagonist::Body(j) = k.1 { Some(j) } else { None };
+            [Some(k.0), other].into_iter().flatten().filter(|&b| moving[b]).map(move |b| (c, b))
+        })
+        .collect();
+    touched.sort_unstable();
+    touched
+        .windows(2)
+        .find(|w| w[0] == w[1])
+        .map(|w| format!("two contacts of colour {} touch body {}: the colouring is not proper", w[0].0, w[0].1))
+}

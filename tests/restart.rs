@@ -1,0 +1,191 @@
+//! Restarts: a run of 2N steps equals N steps, a restart from the checkpoint and N more, bit for
+//! bit, for one thread, two threads (coloured Gauss–Seidel, whose colouring memory the
+//! checkpoint carries) and the GPU; a checkpoint is refused for another scene or when tampered.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use moreau::io::checkpoint::{read_checkpoint, write_checkpoint};
+use moreau::Simulation;
+
+fn moreau() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_moreau"))
+}
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("moreau_restart_{}_{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// `scenes/pile.toml` with a checkpoint every `every` steps, written into `dir`.
+fn pile_with_checkpoints(dir: &Path, every: usize) -> PathBuf {
+    let text = std::fs::read_to_string("scenes/pile.toml").unwrap();
+    let path = dir.join("pile.toml");
+    std::fs::write(&path, text.replace("[output]\n", &format!("[output]\ncheckpoint_every = {every}\n"))).unwrap();
+    path
+}
+
+fn run(args: &[&str]) -> String {
+    let out = moreau().args(args).args(["--quiet"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "moreau {args:?}: {err}");
+    err
+}
+
+/// steps.csv without its three timing columns.
+fn steps_without_timings(dir: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(dir.join("steps.csv")).unwrap();
+    text.lines()
+        .skip(1)
+        .map(|l| {
+            let fields: Vec<&str> = l.split(',').collect();
+            fields[..fields.len() - 3].join(",")
+        })
+        .collect()
+}
+
+fn forty_equals_twenty_plus_twenty(device: &str, threads: &str) {
+    let dir = temp(&format!("{device}_{threads}"));
+    let scene = pile_with_checkpoints(&dir, 20);
+    let (whole, second) = (dir.join("whole"), dir.join("second"));
+    let common = ["--device", device, "--threads", threads];
+    let s = scene.to_str().unwrap();
+    run(&[&["run", s, "--steps", "40", "--out", whole.to_str().unwrap()][..], &common].concat());
+    let checkpoint = whole.join("checkpoint_000020.json");
+    let said = run(&[
+        &["run", s, "--restart", checkpoint.to_str().unwrap(), "--out", second.to_str().unwrap()][..],
+        &common,
+        &["--steps", "20"],
+    ]
+    .concat());
+    assert!(said.contains("restarting from step 20"), "{said}");
+    let (a, b) = (steps_without_timings(&whole), steps_without_timings(&second));
+    assert_eq!((a.len(), b.len()), (40, 20));
+    assert_eq!(a[20..], b[..], "steps 21 to 40 differ ({device}, {threads} threads)");
+    // The whole state after step 40, warm start and colours included, is the same bytes.
+    let end = |d: &Path| std::fs::read(d.join("checkpoint_000040.json")).unwrap();
+    assert!(end(&whole) == end(&second), "the states after step 40 differ ({device}, {threads} threads)");
+}
+
+#[test]
+fn forty_steps_equal_twenty_a_restart_and_twenty_on_one_and_two_threads() {
+    forty_equals_twenty_plus_twenty("cpu", "1");
+    forty_equals_twenty_plus_twenty("cpu", "2");
+}
+
+#[test]
+fn forty_steps_equal_twenty_a_restart_and_twenty_on_the_gpu() {
+    if common::gpu_context().is_none() {
+        return;
+    }
+    forty_equals_twenty_plus_twenty("gpu", "1");
+}
+
+#[test]
+fn a_threaded_pile_restarts_with_its_colouring_from_a_checkpoint_file() {
+    // 20,000 contacts: the threaded sweep colours the contact graph and repairs the colouring
+    // from step to step; the checkpoint carries the colours.
+    let dir = temp("colours");
+    let scene = Path::new("scenes/pile_10k.toml");
+    let mut first = Simulation::from_scene(scene).unwrap();
+    first.set_threads(2).unwrap();
+    for _ in 0..2 {
+        first.step().unwrap();
+    }
+    let mut c = first.checkpoint();
+    assert!(c.moving.is_some() && c.contacts.iter().all(|x| x.colour.is_some()), "the solve coloured its graph");
+    c.scene_fingerprint = moreau::io::checkpoint::fingerprint(&std::fs::read(scene).unwrap());
+    let file = dir.join("checkpoint.json");
+    write_checkpoint(&c, &file).unwrap();
+    let read = read_checkpoint(&file, scene).unwrap();
+    assert_eq!(read, c, "a checkpoint reads back to the same bits");
+    let mut second = Simulation::from_scene(scene).unwrap();
+    second.set_threads(2).unwrap();
+    second.restore(&read).unwrap();
+    for _ in 0..2 {
+        let (a, b) = (first.step().unwrap(), second.step().unwrap());
+        assert_eq!((a.iterations, a.error.to_bits()), (b.iterations, b.error.to_bits()));
+    }
+    let bits = |s: &Simulation| s.positions().iter().flat_map(|p| [p.x.to_bits(), p.y.to_bits()]).collect::<Vec<_>>();
+    assert!(bits(&first) == bits(&second));
+}
+
+#[test]
+fn a_checkpoint_is_refused_for_another_scene_or_when_it_was_tampered_with() {
+    let dir = temp("refusals");
+    let scene = pile_with_checkpoints(&dir, 10);
+    let s = scene.to_str().unwrap();
+    let out = dir.join("out");
+    run(&["run", s, "--steps", "10", "--out", out.to_str().unwrap(), "--threads", "1", "--device", "cpu"]);
+    let checkpoint = out.join("checkpoint_000010.json");
+    let refusal = |scene: &Path, checkpoint: &Path, extra: &[&str]| {
+        let o = moreau()
+            .args(["run", scene.to_str().unwrap(), "--restart", checkpoint.to_str().unwrap(), "--quiet"])
+            .args(["--out", dir.join("again").to_str().unwrap()])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(!o.status.success(), "a bad restart ran");
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    // Another scene file (here: one changed by a character).
+    let other = dir.join("other.toml");
+    std::fs::write(&other, std::fs::read_to_string(&scene).unwrap().replace("friction = 0.4", "friction = 0.5"))
+        .unwrap();
+    let e = refusal(&other, &checkpoint, &[]);
+    assert!(e.contains("the scene file changed") && e.contains("other.toml"), "{e}");
+    // Tampered contents, each refused with what is wrong.
+    let original = std::fs::read_to_string(&checkpoint).unwrap();
+    let c: serde_json::Value = serde_json::from_str(&original).unwrap();
+    let tamper = |edit: &dyn Fn(&mut serde_json::Value), message: &str| {
+        let mut bad = c.clone();
+        edit(&mut bad);
+        let path = dir.join("bad.json");
+        std::fs::write(&path, bad.to_string()).unwrap();
+        let e = refusal(&scene, &path, &["--steps", "5"]);
+        assert!(e.contains(message), "{e} should say {message:?}");
+    };
+    tamper(&|c| c["position"].as_array_mut().unwrap().truncate(3), "position has 3 entries, the scene 400");
+    tamper(&|c| c["velocity"][0][0] = serde_json::Value::Null, "not a moreau checkpoint");
+    tamper(&|c| c["contacts"][0]["body"] = 9999.into(), "which the scene lacks");
+    tamper(&|c| c["contacts"][0]["other_wall"] = 0.into(), "exactly one of other_body, other_wall");
+    tamper(&|c| c["format"] = 7.into(), "format 7 is not 1");
+    tamper(&|c| c["contacts"].as_array_mut().unwrap().reverse(), "not sorted");
+    // A checkpoint at the scene's last step needs --steps to go on.
+    std::fs::write(
+        dir.join("short.toml"),
+        std::fs::read_to_string(&scene).unwrap().replace("steps = 300", "steps = 10"),
+    )
+    .unwrap();
+    let short_checkpoint = dir.join("short_ck.json");
+    let mut at_end = c.clone();
+    at_end["scene_fingerprint"] =
+        moreau::io::checkpoint::fingerprint(&std::fs::read(dir.join("short.toml")).unwrap()).into();
+    std::fs::write(&short_checkpoint, at_end.to_string()).unwrap();
+    let e = refusal(&dir.join("short.toml"), &short_checkpoint, &[]);
+    assert!(e.contains("the scene's last: give --steps"), "{e}");
+}
+
+#[test]
+fn improper_colours_in_a_checkpoint_are_refused() {
+    let scene = Path::new("scenes/pile_10k.toml");
+    let mut sim = Simulation::from_scene(scene).unwrap();
+    sim.set_threads(2).unwrap();
+    sim.step().unwrap();
+    let mut c = sim.checkpoint();
+    let fresh = Simulation::from_scene(scene).unwrap();
+    // Two contacts of body 0's neighbourhood given one colour: not a proper colouring.
+    let (a, b) = (0, 1);
+    assert_eq!(c.contacts[a].body, c.contacts[b].body);
+    c.contacts[b].colour = c.contacts[a].colour;
+    let mut target = fresh;
+    let e = target.restore(&c).unwrap_err().to_string();
+    assert!(e.contains("the colouring is not proper"), "{e}");
+    c.contacts[b].colour = Some(u32::MAX);
+    let e = target.restore(&c).unwrap_err().to_string();
+    assert!(e.contains("is not below the number of contacts"), "{e}");
+}
