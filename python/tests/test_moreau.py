@@ -88,10 +88,12 @@ def read_steps(path):
 
 def test_a_scene_stepped_from_python_matches_the_command_line_step_by_step(tmp_path):
     steps = 40
-    args = [cli(), "run", str(PILE), "--steps", str(steps), "--threads", "1", "--device", "cpu", "--quiet"]
+    scene = tmp_path / "pile.toml"
+    scene.write_text(PILE.read_text().replace("[output]\n", f"[output]\ncheckpoint_every = {steps}\n"))
+    args = [cli(), "run", str(scene), "--steps", str(steps), "--threads", "1", "--device", "cpu", "--quiet"]
     subprocess.run(args + ["--out", str(tmp_path)], check=True, capture_output=True)
     rows = read_steps(tmp_path / "steps.csv")
-    sim = moreau.Simulation.from_scene(PILE)
+    sim = moreau.Simulation.from_scene(scene)
     assert sim.set_device("cpu", threads=1).startswith("cpu")
     for row in rows:
         report = sim.step()
@@ -103,6 +105,11 @@ def test_a_scene_stepped_from_python_matches_the_command_line_step_by_step(tmp_p
         for name in ("packing_fraction", "coordination", "stress_yy"):
             assert measures[name] == pytest.approx(float(row[name]), rel=1e-12, abs=1e-300), name
     assert sim.steps_done == steps and sim.time == pytest.approx(steps * 2e-3)
+    # The command line's state after the last step, from its checkpoint: the same bits.
+    end = json.loads((tmp_path / f"checkpoint_{steps:06d}.json").read_text())
+    np.testing.assert_array_equal(sim.positions, np.array(end["position"]))
+    np.testing.assert_array_equal(sim.velocities, np.array(end["velocity"]))
+    np.testing.assert_array_equal(sim.spins, np.array(end["spin"]))
 
 
 def test_state_and_contacts_come_back_as_arrays_of_the_documented_shapes():
