@@ -252,6 +252,7 @@ fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
         "grains.pvd",
         "contacts.pvd",
         "walls.pvd",
+        "grains_000000.vtu",
         "grains_000020.vtu",
         "contacts_000040.vtu",
         "state_000040.png",
@@ -260,9 +261,48 @@ fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
         assert!(out.join(f).exists(), "{f} missing");
     }
     let pvd = std::fs::read_to_string(out.join("grains.pvd")).unwrap();
-    assert!(pvd.contains("grains_000020.vtu") && pvd.contains("grains_000040.vtu"));
+    assert!(
+        pvd.contains("grains_000000.vtu") && pvd.contains("grains_000020.vtu") && pvd.contains("grains_000040.vtu")
+    );
     let vtu = std::fs::read_to_string(out.join("contacts_000040.vtu")).unwrap();
-    assert!(vtu.contains("normal_impulse") && vtu.contains("status"));
+    assert!(vtu.contains("normal_impulse") && vtu.contains(moreau::io::vtk::STATUS_LEGEND));
+    assert!(std::fs::read_to_string(out.join("grains_000040.vtu")).unwrap().contains("orientation"));
+    // Each contact's force vector is its impulse over the step, in the (normal, tangent) frame.
+    let cells = contact_cells(&out.join("contacts_000040.vtu"));
+    let (rn, rt, normal, force) =
+        (&cells["normal_impulse"], &cells["tangential_impulse"], &cells["normal"], &cells["force"]);
+    assert!(!rn.is_empty() && force.len() == 3 * rn.len() && cells["contact_point"].len() == 3 * rn.len());
+    for a in 0..rn.len() {
+        let (nx, ny) = (normal[3 * a], normal[3 * a + 1]);
+        let expected = [(rn[a] * nx - rt[a] * ny) / 2e-3, (rn[a] * ny + rt[a] * nx) / 2e-3];
+        for (got, want) in [force[3 * a], force[3 * a + 1]].iter().zip(expected) {
+            assert!((got - want).abs() <= 1e-12 * want.abs().max(1e-9), "contact {a}: force {got} vs {want}");
+        }
+    }
+    assert!(cells["body"].iter().zip(&cells["other_is_wall"]).all(|(b, w)| *b >= 0.0 && (*w == 0.0 || *w == 1.0)));
+    // `moreau stats` turns the contacts file into the density of normal forces over their mean.
+    let stats = Command::new(env!("CARGO_BIN_EXE_moreau"))
+        .args(["stats", out.join("contacts_000040.vtu").to_str().unwrap(), "--bins", "10"])
+        .output()
+        .unwrap();
+    assert!(stats.status.success(), "{}", String::from_utf8_lossy(&stats.stderr));
+    let pdf = std::fs::read_to_string(out.join("force_pdf_000040.csv")).unwrap();
+    let rows: Vec<(f64, f64)> = pdf
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let (x, d) = l.split_once(',').unwrap();
+            (x.parse().unwrap(), d.parse().unwrap())
+        })
+        .collect();
+    let width = 2.0 * rows[0].0;
+    assert_eq!(rows.len(), 10);
+    assert!((rows.iter().map(|r| r.1 * width).sum::<f64>() - 1.0).abs() < 1e-9, "{pdf}");
+    let bad = Command::new(env!("CARGO_BIN_EXE_moreau"))
+        .args(["stats", out.join("steps.csv").to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("steps.csv"));
     // The dumped problem is a valid Siconos file that `moreau solve` solves.
     let problem = moreau::io::siconos::read_fc2d(&out.join("problem_000030.dat")).unwrap();
     assert!(problem.n_contacts() > 0);
@@ -307,4 +347,21 @@ fn a_criterion_the_gpu_lacks_keeps_the_run_on_the_cpu() {
     let stderr = String::from_utf8_lossy(&gpu.stderr);
     assert!(!gpu.status.success());
     assert!(stderr.contains("not on the maxm criterion"), "{stderr}");
+}
+
+/// The cell arrays of a contacts `.vtu`, by name, as f64.
+fn contact_cells(path: &std::path::Path) -> std::collections::HashMap<String, Vec<f64>> {
+    use vtkio::model::{Attribute, DataSet, Piece};
+    let vtk = vtkio::Vtk::import(path).unwrap();
+    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else { panic!("not an unstructured grid") };
+    let Piece::Inline(piece) = &pieces[0] else { panic!("not inline") };
+    piece
+        .data
+        .cell
+        .iter()
+        .filter_map(|a| match a {
+            Attribute::DataArray(d) => Some((d.name.clone(), d.data.clone().cast_into::<f64>().unwrap())),
+            _ => None,
+        })
+        .collect()
 }

@@ -96,6 +96,13 @@ enum Command {
     Run(run::RunArgs),
     /// Solve one frictional contact problem read from a file.
     Solve(SolveArgs),
+    /// The probability density of normal forces over their mean, from a run's
+    /// contacts_NNNNNN.vtu: force_pdf_NNNNNN.csv and a log-scale chart beside it.
+    Stats {
+        contacts: PathBuf,
+        #[arg(long, default_value_t = 25)]
+        bins: usize,
+    },
     /// Check a scene file without running it: errors, then warnings about its start (grains
     /// overlapping, outside or inside walls, a time step too long for the fastest grain).
     Check {
@@ -150,6 +157,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Run(args) => run::run_command(args),
         Command::Solve(args) => solve_command(args),
         Command::Check { scene, strict } => check_command(&scene, strict),
+        Command::Stats { contacts, bins } => stats_command(&contacts, bins),
         Command::Bench(args) => bench::bench_command(args),
         Command::Sweep(args) => sweep::sweep_command(args),
         Command::FrictionStudy(args) => sweep::friction_command(args),
@@ -185,6 +193,47 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
     }
+}
+
+fn stats_command(path: &std::path::Path, bins: usize) -> Result<()> {
+    if !(1..=10_000).contains(&bins) {
+        bail!("--bins {bins}: must lie in 1..=10000");
+    }
+    let impulses = crate::io::vtk::read_cell_array(path, "normal_impulse")?;
+    let (pdf, mean, carried) = crate::stepping::normal_force_pdf(&impulses, bins);
+    if carried == 0 {
+        bail!("{}: no contact carries a force ({} contacts)", path.display(), impulses.len());
+    }
+    let above = impulses.iter().filter(|&&f| f > mean).count();
+    let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("contacts");
+    let stem = path.with_file_name(format!("force_pdf{}", stem.strip_prefix("contacts").unwrap_or(stem)));
+    let mut csv = String::from("force_over_mean,density\n");
+    pdf.iter().for_each(|(x, d)| csv.push_str(&format!("{x},{d}\n")));
+    let csv_path = stem.with_extension("csv");
+    std::fs::write(&csv_path, csv).with_context(|| format!("writing {}", csv_path.display()))?;
+    println!(
+        "{}: {} contacts, {carried} carry a force; mean normal impulse {mean:.4e}; {:.1} % above the mean",
+        path.display(),
+        impulses.len(),
+        100.0 * above as f64 / carried as f64
+    );
+    let positive: Vec<(f64, f64)> = pdf.iter().copied().filter(|p| p.1 > 0.0).collect();
+    let series = [("P(f / <f>)".to_string(), positive)];
+    let chart = crate::io::plots::Chart {
+        title: "normal forces",
+        x_label: "f / <f>",
+        y_label: "probability density",
+        log_x: false,
+        log_y: true,
+        series: &series,
+    };
+    if crate::io::plots::font_available() {
+        crate::io::plots::write_chart(&stem, &chart)?;
+        println!("wrote {} and {}.png/.svg", csv_path.display(), stem.display());
+    } else {
+        println!("wrote {} (no font for the chart)", csv_path.display());
+    }
+    Ok(())
 }
 
 fn check_command(path: &std::path::Path, strict: bool) -> Result<()> {

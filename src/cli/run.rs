@@ -182,6 +182,9 @@ pub fn run_command(a: RunArgs) -> Result<()> {
             .expect("valid progress template"),
     );
     bar.enable_steady_tick(Duration::from_millis(500));
+    if vtk_every > 0 {
+        output.vtk(&sim)?; // the start (step 0, or the checkpoint's step)
+    }
     for _ in 0..steps {
         let report = match sim.step() {
             Ok(report) => report,

@@ -236,6 +236,7 @@ fn is_run_output(name: &str) -> bool {
         || numbered("state_", ".png")
         || numbered("problem_", ".dat")
         || numbered("checkpoint_", ".json")
+        || [".csv", ".png", ".svg"].iter().any(|ext| numbered("force_pdf_", ext))
 }
 
 fn clear_earlier_run(dir: &Path) -> Result<usize> {

@@ -1,8 +1,9 @@
 //! VTK output for ParaView (vtkio, XML `.vtu`) and `.pvd` time series.
-//! `grains_NNNNNN.vtu`: one vertex per body (glyph it by `radius`), polygons as polygon cells
-//! follow in `shapes`; `contacts_NNNNNN.vtu`: one line per contact (centre to centre, or centre
-//! to contact point for a wall) with the normal and tangential impulses and the status — the
-//! force chains; `walls_NNNNNN.vtu`: the walls as lines.
+//! `grains_NNNNNN.vtu`: one vertex per body (glyph it by `radius`, orient it by `orientation`),
+//! polygons as polygon cells after the vertices; `contacts_NNNNNN.vtu`: one line per contact
+//! (centre to centre, or centre to contact point for a wall) with the contact point, the normal,
+//! the force vector, the impulses, the gap, the two bodies and the status (its array's name is
+//! its legend) — the force chains; `walls_NNNNNN.vtu`: the walls as lines.
 
 use std::path::{Path, PathBuf};
 
@@ -73,6 +74,9 @@ pub fn write_step(sim: &Simulation, dir: &Path, index: usize) -> Result<[PathBuf
         point: vec![
             Attribute::vectors("velocity").with_data(pad(velocity, 3)),
             Attribute::scalars("spin", 1).with_data(pad((0..n).map(|k| b.spin_of(k)).collect(), 1)),
+            Attribute::scalars("angle", 1).with_data(pad((0..n).map(|k| b.angle_of(k)).collect(), 1)),
+            Attribute::vectors("orientation")
+                .with_data(pad((0..n).flat_map(|k| [b.angle_of(k).cos(), b.angle_of(k).sin(), 0.0]).collect(), 3)),
             Attribute::scalars("radius", 1).with_data(pad((0..n).map(|k| b.radius_of(k)).collect(), 1)),
             Attribute::scalars("tag", 1).with_data(pad((0..n).map(|k| b.tag[k] as f64).collect(), 1)),
         ],
@@ -97,15 +101,35 @@ pub fn write_step(sim: &Simulation, dir: &Path, index: usize) -> Result<[PathBuf
         points.extend([a.x, a.y, 0.0, z.x, z.y, 0.0]);
         offs.push(conn.len() as u64);
     }
+    let h = sim.settings.h;
+    let vector = |f: &dyn Fn(&crate::stepping::ContactState) -> glam::DVec2| -> Vec<f64> {
+        contacts.iter().flat_map(|c| f(c).extend(0.0).to_array()).collect()
+    };
     let data = Attributes {
         point: vec![],
         cell: vec![
+            Attribute::vectors("contact_point").with_data(vector(&|c| c.contact.point)),
+            Attribute::vectors("normal").with_data(vector(&|c| c.contact.normal)),
+            Attribute::vectors("force")
+                .with_data(vector(&|c| (c.impulse[0] * c.contact.normal + c.impulse[1] * c.contact.normal.perp()) / h)),
+            Attribute::scalars("body", 1).with_data(contacts.iter().map(|c| c.contact.i as i64).collect::<Vec<i64>>()),
+            Attribute::scalars("other", 1).with_data(
+                contacts
+                    .iter()
+                    .map(|c| match c.contact.other {
+                        Antagonist::Body(j) | Antagonist::Wall(j) => j as i64,
+                    })
+                    .collect::<Vec<i64>>(),
+            ),
+            Attribute::scalars("other_is_wall", 1).with_data(
+                contacts.iter().map(|c| matches!(c.contact.other, Antagonist::Wall(_)) as i32).collect::<Vec<i32>>(),
+            ),
             Attribute::scalars("normal_impulse", 1)
                 .with_data(contacts.iter().map(|c| c.impulse[0]).collect::<Vec<f64>>()),
             Attribute::scalars("tangential_impulse", 1)
                 .with_data(contacts.iter().map(|c| c.impulse[1]).collect::<Vec<f64>>()),
             Attribute::scalars("gap", 1).with_data(contacts.iter().map(|c| c.contact.gap).collect::<Vec<f64>>()),
-            Attribute::scalars("status", 1)
+            Attribute::scalars(STATUS_LEGEND, 1)
                 .with_data(contacts.iter().map(|c| c.status.code() as i32).collect::<Vec<i32>>()),
         ],
     };
@@ -135,6 +159,29 @@ pub fn write_step(sim: &Simulation, dir: &Path, index: usize) -> Result<[PathBuf
         .export(&walls)
         .with_context(|| format!("writing {}", walls.display()))?;
     Ok([grains, contacts_path, walls])
+}
+
+/// The name of the contacts' status array, which ParaView shows as its legend.
+pub const STATUS_LEGEND: &str = "status: 0 open, 1 stick, 2 slide r_t=+mu r_n, 3 slide r_t=-mu r_n";
+
+/// The cell array `name` of a `.vtu` file (a contacts file's `normal_impulse`, say), as f64.
+pub fn read_cell_array(path: &Path, name: &str) -> Result<Vec<f64>> {
+    use vtkio::model::Piece;
+    let vtk = Vtk::import(path).map_err(|e| anyhow::anyhow!("{}: not a VTK file moreau reads: {e}", path.display()))?;
+    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        anyhow::bail!("{}: not an unstructured grid (.vtu)", path.display());
+    };
+    let arrays = pieces.iter().filter_map(|p| if let Piece::Inline(p) = p { Some(&p.data.cell) } else { None });
+    for cell in arrays {
+        for a in cell {
+            if let Attribute::DataArray(d) = a {
+                if d.name == name {
+                    return d.data.clone().cast_into::<f64>().ok_or_else(|| anyhow::anyhow!("{name}: not numbers"));
+                }
+            }
+        }
+    }
+    anyhow::bail!("{}: no cell array {name:?} (is it a moreau contacts_NNNNNN.vtu?)", path.display())
 }
 
 /// A ParaView collection (`.pvd`) of (time, file) pairs.

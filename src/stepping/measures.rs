@@ -98,3 +98,41 @@ impl Simulation {
         ((x1 - x0) * (top - y0)).max(0.0)
     }
 }
+
+/// The probability density of normal forces over their mean (the granular physicist's first
+/// plot), from the forces (or impulses: the ratio is the same) of the contacts that carry one:
+/// `bins` equal bins from 0 to the largest ratio. Returns (bin centre, density), the mean force
+/// and how many forces were counted; empty when no contact carries a force.
+pub fn normal_force_pdf(forces: &[f64], bins: usize) -> (Vec<(f64, f64)>, f64, usize) {
+    let carried: Vec<f64> = forces.iter().copied().filter(|f| *f > 0.0 && f.is_finite()).collect();
+    if carried.is_empty() || bins == 0 {
+        return (Vec::new(), 0.0, 0);
+    }
+    let mean = carried.iter().sum::<f64>() / carried.len() as f64;
+    let top = carried.iter().fold(0.0f64, |m, f| m.max(f / mean));
+    let width = top / bins as f64;
+    let mut count = vec![0usize; bins];
+    for f in &carried {
+        count[((f / mean / width) as usize).min(bins - 1)] += 1;
+    }
+    let total = carried.len() as f64;
+    let pdf = count.iter().enumerate().map(|(k, &c)| ((k as f64 + 0.5) * width, c as f64 / (total * width))).collect();
+    (pdf, mean, carried.len())
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_force_density_integrates_to_one_and_has_mean_one() {
+        // Forces 0 (open, not counted), 1, 2, …, 100: ratios up to 2 around a mean of 1.
+        let forces: Vec<f64> = (0..=100).map(f64::from).collect();
+        let (pdf, mean, carried) = super::normal_force_pdf(&forces, 20);
+        assert_eq!((mean, carried, pdf.len()), (50.5, 100, 20));
+        let width = pdf[1].0 - pdf[0].0;
+        let mass: f64 = pdf.iter().map(|p| p.1 * width).sum();
+        let first_moment: f64 = pdf.iter().map(|p| p.0 * p.1 * width).sum();
+        assert!((mass - 1.0).abs() < 1e-12, "{mass}");
+        assert!((first_moment - 1.0).abs() < 0.02, "{first_moment}");
+        assert_eq!(super::normal_force_pdf(&[0.0, -1.0, f64::NAN], 10).2, 0);
+    }
+}
