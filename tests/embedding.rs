@@ -169,4 +169,9 @@ fn a_resting_column_has_the_packing_coordination_and_stress_of_statics() {
     assert!((m.packing_fraction - phi).abs() < 1e-6, "φ {} vs {phi}", m.packing_fraction);
     // Bottom and middle disks carry two contacts each; the top one, one: a rattler.
     assert_eq!((m.coordination, m.rattlers), (2.0, 1), "{m:?}");
+    // The floor carries the column's weight; the side walls nothing.
+    let loads = sim.wall_loads();
+    let weight = k as f64 * mass * 9.81;
+    assert!((loads[0].force[1] + weight).abs() < 1e-6 * weight && loads[0].force[0].abs() < 1e-9 * weight, "{loads:?}");
+    assert!(loads[0].moment.abs() < 1e-9 * weight && loads[1..].iter().all(|l| l.force == [0.0, 0.0]), "{loads:?}");
 }

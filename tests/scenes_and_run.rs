@@ -365,3 +365,31 @@ fn contact_cells(path: &std::path::Path) -> std::collections::HashMap<String, Ve
         })
         .collect()
 }
+
+#[test]
+fn walls_csv_holds_each_walls_position_and_load_when_asked_for() {
+    let dir = std::env::temp_dir().join(format!("moreau-walls-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("pile.toml");
+    let text = std::fs::read_to_string("scenes/pile.toml").unwrap();
+    std::fs::write(&scene, text.replace("[output]\n", "[output]\nwall_forces = true\n")).unwrap();
+    let out = dir.join("out");
+    let o = Command::new(env!("CARGO_BIN_EXE_moreau"))
+        .args(["run", scene.to_str().unwrap(), "--steps", "300", "--device", "cpu", "--quiet", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(out.join("walls.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("step,time,wall,x,y,angle,fx,fy,moment"));
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+    let walls = rows.iter().filter(|r| r[0] == 1.0).count();
+    assert!(walls >= 1 && rows.len() == 300 * walls, "{} rows for {walls} walls", rows.len());
+    // At rest (step 300) the walls carry the pile's weight: 400 disks of glass, radius 2–3 mm.
+    let last: Vec<&Vec<f64>> = rows.iter().filter(|r| r[0] == 300.0).collect();
+    let fy: f64 = last.iter().map(|r| r[7]).sum();
+    let weight = 2500.0 * 9.81 * 400.0 * std::f64::consts::PI * 0.0025f64.powi(2);
+    assert!(fy < 0.0 && (fy.abs() - weight).abs() < 0.15 * weight, "Σ fy {fy} vs weight about {weight}");
+}

@@ -162,6 +162,7 @@ pub fn run_command(a: RunArgs) -> Result<()> {
     );
     let scene_name = scene.name.clone();
     let checkpoint_every = scene.output.checkpoint_every;
+    let wall_forces = scene.output.wall_forces;
     let mut sim = Simulation::new(scene.world, scene.settings)?;
     sim.set_backend(backend)?;
     if let Some(c) = &restart {
@@ -203,6 +204,9 @@ pub fn run_command(a: RunArgs) -> Result<()> {
             }
         };
         output.record(&report, &sim.measures())?;
+        if wall_forces {
+            output.record_walls(&sim)?;
+        }
         summary.add(&report);
         if !report.converged && summary.unconverged_steps <= WARNINGS_SHOWN {
             bar.suspend(|| {

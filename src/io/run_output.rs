@@ -39,6 +39,20 @@ struct Row {
     solve_seconds: f64,
 }
 
+/// One row of `walls.csv`: a wall's position and the grains' mean force and moment on it.
+#[derive(Serialize)]
+struct WallRow {
+    step: usize,
+    time: f64,
+    wall: usize,
+    x: f64,
+    y: f64,
+    angle: f64,
+    fx: f64,
+    fy: f64,
+    moment: f64,
+}
+
 /// Totals over a run, written as `summary.json`.
 #[derive(Serialize, Debug, Clone, Default)]
 pub struct RunSummary {
@@ -154,6 +168,7 @@ impl RunSummary {
 pub struct RunOutput {
     pub dir: PathBuf,
     csv: csv::Writer<File>,
+    walls_csv: Option<csv::Writer<File>>,
     grains: Vec<(f64, PathBuf)>,
     contacts: Vec<(f64, PathBuf)>,
     walls: Vec<(f64, PathBuf)>,
@@ -168,10 +183,42 @@ impl RunOutput {
         let removed = clear_earlier_run(dir)?;
         let path = dir.join("steps.csv");
         let csv = csv::Writer::from_path(&path).with_context(|| format!("creating {}", path.display()))?;
-        Ok((Self { dir: dir.to_path_buf(), csv, grains: Vec::new(), contacts: Vec::new(), walls: Vec::new() }, removed))
+        let out = Self {
+            dir: dir.to_path_buf(),
+            csv,
+            walls_csv: None,
+            grains: Vec::new(),
+            contacts: Vec::new(),
+            walls: Vec::new(),
+        };
+        Ok((out, removed))
     }
 
     /// One row of steps.csv: the step's report and the measures of the state it left.
+    /// Rows of walls.csv for the step just taken: each wall's position and load.
+    pub fn record_walls(&mut self, sim: &Simulation) -> Result<()> {
+        if self.walls_csv.is_none() {
+            let path = self.dir.join("walls.csv");
+            let csv = csv::Writer::from_path(&path).with_context(|| format!("creating {}", path.display()))?;
+            self.walls_csv = Some(csv);
+        }
+        let csv = self.walls_csv.as_mut().expect("created above");
+        for (w, (wall, load)) in sim.world.walls.iter().zip(sim.wall_loads()).enumerate() {
+            csv.serialize(WallRow {
+                step: sim.steps_done(),
+                time: sim.time(),
+                wall: w,
+                x: wall.center.x,
+                y: wall.center.y,
+                angle: wall.angle,
+                fx: load.force[0],
+                fy: load.force[1],
+                moment: load.moment,
+            })?;
+        }
+        Ok(())
+    }
+
     pub fn record(&mut self, r: &StepReport, m: &Measures) -> Result<()> {
         self.csv.serialize(Row {
             step: r.step,
@@ -216,6 +263,9 @@ impl RunOutput {
 
     pub fn finish(mut self, summary: &RunSummary) -> Result<()> {
         self.csv.flush()?;
+        if let Some(w) = self.walls_csv.as_mut() {
+            w.flush()?;
+        }
         let path = self.dir.join("summary.json");
         std::fs::write(&path, serde_json::to_string_pretty(summary)?)
             .with_context(|| format!("writing {}", path.display()))
@@ -229,7 +279,7 @@ fn is_run_output(name: &str) -> bool {
             .and_then(|rest| rest.strip_suffix(ext))
             .is_some_and(|digits| !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit()))
     };
-    matches!(name, "steps.csv" | "summary.json" | "grains.pvd" | "contacts.pvd" | "walls.pvd")
+    matches!(name, "steps.csv" | "walls.csv" | "summary.json" | "grains.pvd" | "contacts.pvd" | "walls.pvd")
         || numbered("grains_", ".vtu")
         || numbered("contacts_", ".vtu")
         || numbered("walls_", ".vtu")

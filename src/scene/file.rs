@@ -116,6 +116,7 @@ struct OutputSpec {
     vtk: Option<bool>,
     picture_step: Option<usize>,
     checkpoint_every: Option<usize>,
+    wall_forces: Option<bool>,
 }
 
 #[derive(Deserialize, Default, Clone, Copy)]
@@ -699,6 +700,7 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         vtk: output.and_then(|o| o.vtk).unwrap_or(false),
         picture_step: output.and_then(|o| o.picture_step),
         checkpoint_every: output.and_then(|o| o.checkpoint_every).unwrap_or(0),
+        wall_forces: output.and_then(|o| o.wall_forces).unwrap_or(false),
     };
     Ok(Scene {
         name: super::scene_name(&cx, file.name.as_ref(), origin, "scene")?,

@@ -26,6 +26,8 @@ pub struct OutputSettings {
     pub picture_step: Option<usize>,
     /// Write a checkpoint (`checkpoint_NNNNNN.json`) every this many steps (0: never).
     pub checkpoint_every: usize,
+    /// Write `walls.csv`: each wall's position and the force and moment the grains put on it.
+    pub wall_forces: bool,
 }
 
 /// A loaded scene, ready to simulate.

@@ -99,6 +99,34 @@ impl Simulation {
     }
 }
 
+/// The load the grains put on one wall over the last step: mean force and its moment about the
+/// wall's centre (counter-clockwise positive).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct WallLoad {
+    pub force: [f64; 2],
+    pub moment: f64,
+}
+
+impl Simulation {
+    /// The load on each wall (in wall order) from the last step's contacts.
+    pub fn wall_loads(&self) -> Vec<WallLoad> {
+        let mut loads = vec![WallLoad::default(); self.world.walls.len()];
+        let h = self.settings.h;
+        for c in &self.contacts {
+            if let Antagonist::Wall(w) = c.contact.other {
+                let (n, t) = (c.contact.normal, c.contact.normal.perp());
+                let on_wall = -(c.impulse[0] * n + c.impulse[1] * t) / h;
+                let arm = c.contact.point - self.world.walls[w].center;
+                let load = &mut loads[w];
+                load.force[0] += on_wall.x;
+                load.force[1] += on_wall.y;
+                load.moment += arm.perp_dot(on_wall);
+            }
+        }
+        loads
+    }
+}
+
 /// The probability density of normal forces over their mean (the granular physicist's first
 /// plot), from the forces (or impulses: the ratio is the same) of the contacts that carry one:
 /// `bins` equal bins from 0 to the largest ratio. Returns (bin centre, density), the mean force
