@@ -264,23 +264,9 @@ pub extern "C" fn moreau_problem_from_csr(
         let nnz = row_start[rows];
         let columns = slice(columns, nnz, "columns")?;
         let values = slice(values, nnz, "values")?;
-        let mut entries = Vec::with_capacity(nnz);
-        for row in 0..rows {
-            let (a, b) = (row_start[row], row_start[row + 1]);
-            if a > b || b > nnz {
-                return fail(MoreauStatus::Problem, format!("W: row_start is not increasing at row {row}"));
-            }
-            for k in a..b {
-                if columns[k] >= rows {
-                    return fail(
-                        MoreauStatus::Problem,
-                        format!("W: column {} of row {row} is not below {rows}", columns[k]),
-                    );
-                }
-                entries.push((row, columns[k], values[k]));
-            }
-        }
-        let w = Delassus::Sparse(BlockSparse::from_scalar_entries(n_contacts, entries));
+        let w = BlockSparse::from_csr(n_contacts, row_start, columns, values)
+            .or_else(|e| fail(MoreauStatus::Problem, format!("W: {e}")))?;
+        let w = Delassus::Sparse(w);
         let q = slice(q, rows, "q")?.to_vec();
         let mu = slice(mu, n_contacts, "mu")?.to_vec();
         let problem = ContactProblem::new(w, q, mu).or_else(|e| fail(MoreauStatus::Problem, e.to_string()))?;

@@ -39,6 +39,11 @@ fn indices(bytes: &[u8], name: &str) -> PyResult<Vec<i64>> {
     values(bytes, name, "int64")
 }
 
+/// Indices as `usize`; a negative one is an error naming the array.
+fn unsigned(values: Vec<i64>, name: &str) -> PyResult<Vec<usize>> {
+    values.into_iter().map(|v| usize::try_from(v).map_err(|_| error(format!("{name}: {v} is negative")))).collect()
+}
+
 fn to_bytes<'py, T: bytemuck::Pod>(py: Python<'py>, values: &[T]) -> Bound<'py, PyBytes> {
     PyBytes::new(py, bytemuck::cast_slice(values))
 }
@@ -57,31 +62,11 @@ impl Problem {
     /// `q` (2n) and `mu` (n), as bytes.
     #[staticmethod]
     fn from_csr(n: usize, indptr: &[u8], indices_: &[u8], data: &[u8], q: &[u8], mu: &[u8]) -> PyResult<Self> {
-        let (indptr, columns, values) =
-            (indices(indptr, "indptr")?, indices(indices_, "indices")?, floats(data, "data")?);
-        let rows = 2 * n;
-        if indptr.len() != rows + 1 {
-            return Err(error(format!(
-                "W: indptr has {} entries, expected {} (2 rows per contact, + 1)",
-                indptr.len(),
-                rows + 1
-            )));
-        }
-        let mut entries = Vec::with_capacity(values.len());
-        for row in 0..rows {
-            let (a, b) = (indptr[row], indptr[row + 1]);
-            if a < 0 || a > b || b as usize > values.len().min(columns.len()) {
-                return Err(error(format!("W: indptr is not increasing within the data at row {row}")));
-            }
-            for k in a as usize..b as usize {
-                let col = columns[k];
-                if col < 0 || col as usize >= rows {
-                    return Err(error(format!("W: column {col} of row {row} is not in 0..{rows}")));
-                }
-                entries.push((row, col as usize, values[k]));
-            }
-        }
-        let w = Delassus::Sparse(BlockSparse::from_scalar_entries(n, entries));
+        let indptr = unsigned(indices(indptr, "indptr")?, "indptr")?;
+        let columns = unsigned(indices(indices_, "indices")?, "indices")?;
+        let w = BlockSparse::from_csr(n, &indptr, &columns, &floats(data, "data")?)
+            .map_err(|e| error(format!("W: {e}")))?;
+        let w = Delassus::Sparse(w);
         ContactProblem::new(w, floats(q, "q")?, floats(mu, "mu")?).map(Self).map_err(error)
     }
 
@@ -169,7 +154,7 @@ fn solve<'py>(
 #[pyclass(name = "World", module = "moreau._moreau")]
 struct World(moreau::World);
 
-fn material(world: &moreau::World, name: &str) -> PyResult<usize> {
+fn material_named(world: &moreau::World, name: &str) -> PyResult<usize> {
     world.materials.index_of(name).ok_or_else(|| error(format!("material {name:?} does not exist")))
 }
 
@@ -184,7 +169,7 @@ fn body_spec(
     fixed: bool,
     tag: u32,
 ) -> PyResult<BodySpec> {
-    spec.material = material(world, material_name)?;
+    spec.material = material_named(world, material_name)?;
     spec.angle = angle;
     spec.velocity = vec2(velocity);
     spec.spin = spin;
@@ -235,7 +220,7 @@ impl World {
     fn set_interaction(&mut self, a: &str, b: &str, friction: f64, restitution: f64, cohesion: f64) -> PyResult<()> {
         let law = Interaction { friction, restitution, cohesion };
         check_law(&law)?;
-        let (a, b) = (material(&self.0, a)?, material(&self.0, b)?);
+        let (a, b) = (material_named(&self.0, a)?, material_named(&self.0, b)?);
         let e = &mut self.0.effects;
         e.friction |= friction > 0.0;
         e.restitution |= restitution > 0.0;
@@ -284,7 +269,7 @@ impl World {
     /// Adds a wall segment from `a` to `b` (moving at `velocity` with the effect moving_walls).
     #[pyo3(signature = (a, b, material, velocity = (0.0, 0.0)))]
     fn add_wall(&mut self, a: (f64, f64), b: (f64, f64), material: &str, velocity: (f64, f64)) -> PyResult<usize> {
-        let mut wall = Wall::segment(vec2(a), vec2(b), material_index(&self.0, material)?);
+        let mut wall = Wall::segment(vec2(a), vec2(b), material_named(&self.0, material)?);
         wall.velocity = vec2(velocity);
         if wall.is_moving() && !self.0.effects.moving_walls {
             return Err(error("a wall with a velocity needs the effect moving_walls"));
@@ -297,10 +282,6 @@ impl World {
     fn body_count(&self) -> usize {
         self.0.bodies.len()
     }
-}
-
-fn material_index(world: &moreau::World, name: &str) -> PyResult<usize> {
-    material(world, name)
 }
 
 impl World {

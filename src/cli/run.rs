@@ -134,7 +134,11 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         k => format!("{}_from_{k}", scene.name),
     };
     let out_dir = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(default_dir));
-    let fingerprint = fingerprint(&std::fs::read(&a.scene).with_context(|| format!("reading {}", a.scene.display()))?);
+    // Only checkpoints need the scene file's fingerprint.
+    let fingerprint = match scene.output.checkpoint_every {
+        0 => String::new(),
+        _ => fingerprint(&std::fs::read(&a.scene).with_context(|| format!("reading {}", a.scene.display()))?),
+    };
     let mut summary = RunSummary {
         scene: scene.name.clone(),
         device: match backend.adapter_name() {

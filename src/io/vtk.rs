@@ -110,8 +110,7 @@ pub fn write_step(sim: &Simulation, dir: &Path, index: usize) -> Result<[PathBuf
         cell: vec![
             Attribute::vectors("contact_point").with_data(vector(&|c| c.contact.point)),
             Attribute::vectors("normal").with_data(vector(&|c| c.contact.normal)),
-            Attribute::vectors("force")
-                .with_data(vector(&|c| (c.impulse[0] * c.contact.normal + c.impulse[1] * c.contact.normal.perp()) / h)),
+            Attribute::vectors("force").with_data(vector(&|c| c.force(h))),
             Attribute::scalars("body", 1).with_data(contacts.iter().map(|c| c.contact.i as i64).collect::<Vec<i64>>()),
             Attribute::scalars("other", 1).with_data(
                 contacts

@@ -56,6 +56,34 @@ impl BlockSparse {
         Self::from_block_triplets(n, t)
     }
 
+    /// `W` (2n × 2n) from compressed sparse rows, as hosts hand it over: `row_start` has
+    /// 2n + 1 entries, `columns` and `values` hold each row's entries. Errors name the row.
+    pub fn from_csr(n: usize, row_start: &[usize], columns: &[usize], values: &[f64]) -> Result<Self, String> {
+        let rows = 2 * n;
+        if row_start.len() != rows + 1 {
+            return Err(format!(
+                "row_start has {} entries, expected {} (2 rows per contact, + 1)",
+                row_start.len(),
+                rows + 1
+            ));
+        }
+        let stored = columns.len().min(values.len());
+        let mut entries = Vec::with_capacity(stored);
+        for row in 0..rows {
+            let (a, b) = (row_start[row], row_start[row + 1]);
+            if a > b || b > stored {
+                return Err(format!("row_start is not increasing within the entries at row {row}"));
+            }
+            for k in a..b {
+                if columns[k] >= rows {
+                    return Err(format!("column {} of row {row} is not below {rows}", columns[k]));
+                }
+                entries.push((row, columns[k], values[k]));
+            }
+        }
+        Ok(Self::from_scalar_entries(n, entries))
+    }
+
     pub fn n_contacts(&self) -> usize {
         self.row_ptr.len() - 1
     }

@@ -44,8 +44,7 @@ impl Simulation {
         let mut sum = [0.0; 3]; // ℓx fx, ℓy fy, (ℓx fy + ℓy fx) / 2
         let h = self.settings.h;
         for c in self.contacts.iter().filter(|c| c.impulse[0] > 0.0) {
-            let (n, t) = (c.contact.normal, c.contact.normal.perp());
-            let force = (c.impulse[0] * n + c.impulse[1] * t) / h; // on body i
+            let force = c.force(h); // on body i
             let mut add = |k: usize, f: DVec2| {
                 if b.inv_mass[k] > 0.0 {
                     active[k] += 1;
@@ -61,17 +60,18 @@ impl Simulation {
             }
         }
         let carrying: Vec<usize> = grains.iter().map(|&k| active[k]).filter(|&a| a >= 2).collect();
+        let per_area = |x: f64| if area > 0.0 { x / area } else { 0.0 };
         Measures {
-            packing_fraction: if area > 0.0 { grain_area / area } else { 0.0 },
+            packing_fraction: per_area(grain_area),
             coordination: if carrying.is_empty() {
                 0.0
             } else {
                 carrying.iter().sum::<usize>() as f64 / carrying.len() as f64
             },
             rattlers: grains.len() - carrying.len(),
-            stress_xx: if area > 0.0 { sum[0] / area } else { 0.0 },
-            stress_yy: if area > 0.0 { sum[1] / area } else { 0.0 },
-            stress_xy: if area > 0.0 { sum[2] / area } else { 0.0 },
+            stress_xx: per_area(sum[0]),
+            stress_yy: per_area(sum[1]),
+            stress_xy: per_area(sum[2]),
         }
     }
 
@@ -114,8 +114,7 @@ impl Simulation {
         let h = self.settings.h;
         for c in &self.contacts {
             if let Antagonist::Wall(w) = c.contact.other {
-                let (n, t) = (c.contact.normal, c.contact.normal.perp());
-                let on_wall = -(c.impulse[0] * n + c.impulse[1] * t) / h;
+                let on_wall = -c.force(h);
                 let arm = c.contact.point - self.world.walls[w].center;
                 let load = &mut loads[w];
                 load.force[0] += on_wall.x;

@@ -68,6 +68,15 @@ pub struct ContactState {
     pub status: ContactStatus,
 }
 
+impl ContactState {
+    /// The mean force of a step of length `h` on body `i`: the impulse in the (normal, tangent)
+    /// frame, the tangent being the normal turned a quarter counter-clockwise.
+    pub fn force(&self, h: f64) -> DVec2 {
+        let n = self.contact.normal;
+        (self.impulse[0] * n + self.impulse[1] * n.perp()) / h
+    }
+}
+
 /// What one step did.
 #[derive(Clone, Debug, Serialize)]
 pub struct StepReport {
