@@ -271,20 +271,67 @@ fn a_step_repairs_the_last_colouring_rather_than_rebuilding_it() {
     });
 }
 
-/// The Newton prototype (notes §11.1) solves small frictional problems to tight tolerances, and
-/// its hybrid starts with NLGS sweeps.
+/// The Newton prototype (notes §11.1) solves small frictional problems to tight tolerances with
+/// Newton steps, and so does the NLGS–Newton method with its sweeps and corrections.
 #[test]
-fn newton_and_the_nlgs_newton_hybrid_reach_tight_tolerances_on_small_problems() {
+fn newton_and_nlgs_newton_reach_tight_tolerances_on_small_problems() {
     for (nx, ny, mu) in [(12, 6, 0.0), (12, 6, 0.3), (20, 8, 0.5)] {
         let p = lattice_packing(nx, ny, mu, 7);
         for kind in [SolverKind::Newton, SolverKind::NlgsNewton] {
             let opts = SolverOptions { tol: 1e-10, max_iter: 2_000, ..Default::default() };
             let r = solve(&p, kind, &opts, None);
             assert!(r.converged && r.error <= 1e-10, "{kind} on {nx}x{ny} mu {mu}: {:.2e} {}", r.error, r.stop_reason);
-            // Newton steps, not NLGS fallbacks (10 counted iterations each), do the work: measured
-            // 10–27 iterations for Newton, 44–55 for the hybrid (its NLGS sweeps counted).
-            let most = if kind == SolverKind::Newton { 40 } else { 80 };
+            // Newton steps, not NLGS fallbacks (10 counted iterations each), do the work:
+            // measured 10–27 iterations for Newton; NLGS–Newton 5–115 (NLGS alone: 500–2,500).
+            let most = if kind == SolverKind::Newton { 40 } else { 200 };
             assert!(r.iterations <= most, "{kind} on {nx}x{ny} mu {mu}: {} iterations", r.iterations);
         }
     }
+}
+
+/// The first step of a frictionless deposit (1,000 disks dropped and rolled into place, then
+/// loaded by gravity from r = 0): NLGS needs thousands of sweeps, NLGS–Newton a handful of
+/// corrections (the Tresca energy is then the problem's own).
+#[test]
+fn nlgs_newton_solves_a_frictionless_deposit_in_a_few_iterations() {
+    let dir = std::env::temp_dir().join(format!("moreau_deposit_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("deposit.toml");
+    std::fs::write(
+        &scene,
+        r#"name = "deposit"
+effects = ["gravity", "friction", "rotation"]
+[time]
+step = 2e-3
+steps = 1
+[contact]
+friction = 0.0
+[[material]]
+name = "glass"
+density = 2500.0
+[[wall]]
+container = { min = [0.0, 0.0], max = [0.15, 1.0] }
+[[generate]]
+kind = "deposition"
+count = 1000
+radius = [0.002, 0.003]
+region = { min = [0.0, 0.0], max = [0.15, 1.0] }
+seed = 7
+"#,
+    )
+    .unwrap();
+    let p = scene_problem(scene.to_str().unwrap(), 1);
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(p.n_contacts() > 1_500, "{} contacts", p.n_contacts());
+    let opts = SolverOptions { tol: 1e-8, max_iter: 50_000, ..Default::default() };
+    let nlgs = solve(&p, SolverKind::Nlgs, &opts, None);
+    let newton = solve(&p, SolverKind::NlgsNewton, &opts, None);
+    assert!(nlgs.converged && newton.converged, "{} / {}", nlgs.stop_reason, newton.stop_reason);
+    // Measured: 11 iterations against NLGS's 3,317 (2,000 disks: 15 against 14,943).
+    assert!(
+        50 * newton.iterations < nlgs.iterations,
+        "NLGS–Newton {} iterations, NLGS {}",
+        newton.iterations,
+        nlgs.iterations
+    );
 }

@@ -7,7 +7,8 @@
 //! | LATIN | [`latin`] | local/linear stages with search direction k (augmented Lagrangian) |
 //! | projected Jacobi | [`jacobi`] | all contacts from the same iterate, relaxation and per-contact scaling |
 //! | APGD | [`apgd`] | Nesterov projected gradient with restart, Tresca box with threshold updates |
-//! | Newton / NLGS→Newton | [`newton`] | semismooth Newton on the Alart–Curnier function, GMRES on `W` products (prototype) |
+//! | Newton | [`newton`] | semismooth Newton on the Alart–Curnier function, GMRES on `W` products (prototype) |
+//! | NLGS–Newton | [`truncated_newton`] | NLGS sweeps, each followed by a truncated Newton correction of the Tresca problem (sparse Cholesky) |
 //!
 //! Every solver is judged by the same f64 error ([`crate::problem::residual`]) through a
 //! [`monitor::Monitor`], and returns a [`SolveReport`].
@@ -21,6 +22,7 @@ pub mod monitor;
 pub mod newton;
 pub mod nlgs;
 pub mod stopping;
+pub mod truncated_newton;
 
 pub use stopping::StopReason;
 
@@ -39,7 +41,7 @@ pub enum SolverKind {
     Apgd,
     /// Semismooth Newton (Alart–Curnier), NLGS sweeps when its line search fails.
     Newton,
-    /// NLGS while it halves the error every 10 sweeps, then Newton.
+    /// NLGS sweeps, each followed by a truncated Newton correction of the Tresca problem they define.
     NlgsNewton,
 }
 
@@ -251,7 +253,7 @@ pub fn solve(problem: &ContactProblem, kind: SolverKind, opts: &SolverOptions, r
         SolverKind::Latin => latin::solve(problem, opts, r0),
         SolverKind::Jacobi => jacobi::solve(problem, opts, r0),
         SolverKind::Apgd => apgd::solve(problem, opts, r0),
-        SolverKind::Newton => newton::solve(problem, opts, r0, false),
-        SolverKind::NlgsNewton => newton::solve(problem, opts, r0, true),
+        SolverKind::Newton => newton::solve(problem, opts, r0),
+        SolverKind::NlgsNewton => truncated_newton::solve(problem, opts, r0),
     }
 }

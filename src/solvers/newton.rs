@@ -9,9 +9,7 @@
 //! relative residual ≤ min(0.5, ‖Φ‖^½)), then backtracks (Armijo) on the natural-map error that
 //! judges every solve. Newton's iterates may leave the cone; each is judged, and the answer
 //! returned, landed on it (one product more a step). When no step decreases it, a batch of NLGS sweeps takes over and Newton
-//! tries again from there.
-//!
-//! `nlgs-newton` runs NLGS while each batch of sweeps at least halves the error, then Newton.
+//! tries again from there. (`nlgs-newton` is another method: [`super::truncated_newton`].)
 
 use super::monitor::Monitor;
 use super::{nlgs, SolveReport, SolverKind, SolverOptions};
@@ -23,7 +21,7 @@ use crate::problem::{dot, norm, ContactProblem, Mat2};
 const RESTART: usize = 30;
 /// Most GMRES products per Newton step.
 const MAX_KRYLOV: usize = 120;
-/// NLGS sweeps per batch (the hybrid's first phase and the fallback).
+/// NLGS sweeps per fallback batch.
 const SWEEP_BATCH: usize = 10;
 /// Smallest line-search step tried.
 const MIN_STEP: f64 = 1.0 / 64.0;
@@ -175,9 +173,8 @@ fn gmres(
     products
 }
 
-pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>, nlgs_first: bool) -> SolveReport {
-    let kind = if nlgs_first { SolverKind::NlgsNewton } else { SolverKind::Newton };
-    let mut monitor = Monitor::new(p, opts, kind, &r);
+pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveReport {
+    let mut monitor = Monitor::new(p, opts, SolverKind::Newton, &r);
     let nc = p.n_contacts();
     let n = 2 * nc;
     let diag = p.w.diag_blocks();
@@ -194,22 +191,6 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>, nlgs_first: 
     let mut u = p.velocity(&r);
     let mut r = r;
     monitor.w_products += 1;
-    if nlgs_first {
-        let mut error = f64::INFINITY;
-        loop {
-            let (r2, u2, e, k) = sweeps(r, &mut monitor);
-            (r, u) = (r2, u2);
-            monitor.add_iterations(k.saturating_sub(1));
-            if monitor.observe(&r, Some(&u)) {
-                return monitor.finish(r);
-            }
-            let slow = e > 0.5 * error;
-            error = e;
-            if slow {
-                break;
-            }
-        }
-    }
     let (mut phi, mut jac) = (vec![0.0; n], vec![([0.0; 4], [0.0; 4]); nc]);
     let (mut step, mut wv, mut scratch) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let (mut r_try, mut u_try, mut phi_try) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);

@@ -124,7 +124,7 @@ fn solve_on(
 /// The new impulse of contact `a` (now `ra`, with `wr = (W r)_a`): the exact single-contact
 /// solve against all others, relaxed by ω.
 #[inline]
-fn local_solve(p: &ContactProblem, d: &Mat2, a: usize, ra: [f64; 2], wr: [f64; 2], omega: f64) -> [f64; 2] {
+pub(super) fn local_solve(p: &ContactProblem, d: &Mat2, a: usize, ra: [f64; 2], wr: [f64; 2], omega: f64) -> [f64; 2] {
     // Velocity of contact a with its own impulse removed.
     let q_local =
         [p.q[2 * a] + wr[0] - (d[0] * ra[0] + d[1] * ra[1]), p.q[2 * a + 1] + wr[1] - (d[2] * ra[0] + d[3] * ra[1])];
