@@ -11,9 +11,10 @@
 //! with `latin_k_mean` (the founding paper offers both). The returned impulse is `ẑ`, which
 //! always lies in the cone.
 
+use super::conjugate_gradient::ConjugateGradient;
 use super::monitor::Monitor;
 use super::{SolveReport, SolverKind, SolverOptions};
-use crate::problem::{dot, norm, ContactProblem};
+use crate::problem::{norm, ContactProblem};
 
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>) -> SolveReport {
     let nc = p.n_contacts();
@@ -28,13 +29,19 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>) -> SolveRep
     let (mut z_hat, mut w_hat) = (vec![0.0; n], vec![0.0; n]);
     local_stage(&p.mu, &k, &z, &w, &mut z_hat, &mut w_hat);
     let mut rhs = vec![0.0; n];
-    let mut cg = Cg::new(p, &k);
+    // Jacobi-preconditioned CG on (W + diag(k)) z = rhs.
+    let mut cg = ConjugateGradient::new(n);
+    let cg_diag: Vec<f64> = p.w.diag_blocks().iter().flat_map(|d| [d[0], d[3]]).zip(&k).map(|(d, k)| d + k).collect();
+    let apply = |v: &[f64], out: &mut [f64]| {
+        p.w.apply(v, out);
+        out.iter_mut().zip(k.iter().zip(v)).for_each(|(o, (k, v))| *o += k * v);
+    };
     let mut inner_tol: f64 = 1e-2;
     loop {
         for i in 0..n {
             rhs[i] = w_hat[i] + k[i] * z_hat[i] - p.q[i];
         }
-        monitor.w_products += cg.solve(p, &k, &rhs, &mut z, inner_tol);
+        monitor.w_products += cg.solve(apply, Some(&cg_diag), &rhs, &mut z, inner_tol, 10 * n.max(10) + 1);
         for i in 0..n {
             w[i] = w_hat[i] + k[i] * (z_hat[i] - z[i]);
         }
@@ -66,67 +73,5 @@ fn local_stage(mu: &[f64], k: &[f64], z: &[f64], w: &[f64], z_hat: &mut [f64], w
         z_hat[j] = zt;
         w_hat[i] = k[i] * (zn - sn);
         w_hat[j] = k[j] * (zt - st);
-    }
-}
-
-/// Jacobi-preconditioned conjugate gradient on `(W + diag(k)) x = b`.
-struct Cg {
-    diag: Vec<f64>, // diagonal of W + k (the preconditioner)
-    res: Vec<f64>,
-    dir: Vec<f64>,
-    prec_res: Vec<f64>,
-    a_dir: Vec<f64>,
-}
-
-impl Cg {
-    fn new(p: &ContactProblem, k: &[f64]) -> Self {
-        let n = k.len();
-        let diag = p.w.diag_blocks().iter().flat_map(|d| [d[0], d[3]]).zip(k).map(|(d, k)| d + k).collect();
-        Self { diag, res: vec![0.0; n], dir: vec![0.0; n], prec_res: vec![0.0; n], a_dir: vec![0.0; n] }
-    }
-
-    /// Returns the number of products with `W`.
-    fn solve(&mut self, p: &ContactProblem, k: &[f64], b: &[f64], x: &mut [f64], rel_tol: f64) -> usize {
-        let n = b.len();
-        let diag = &self.diag;
-        let apply = |v: &[f64], out: &mut [f64]| {
-            p.w.apply(v, out);
-            for i in 0..n {
-                out[i] += k[i] * v[i];
-            }
-        };
-        apply(x, &mut self.a_dir);
-        let mut products = 1;
-        for i in 0..n {
-            self.res[i] = b[i] - self.a_dir[i];
-            self.prec_res[i] = self.res[i] / diag[i];
-        }
-        self.dir.copy_from_slice(&self.prec_res);
-        let target = rel_tol * norm(b).max(f64::MIN_POSITIVE);
-        let mut rz = dot(&self.res, &self.prec_res);
-        for _ in 0..10 * n.max(10) {
-            if norm(&self.res) <= target {
-                break;
-            }
-            apply(&self.dir, &mut self.a_dir);
-            products += 1;
-            let pap = dot(&self.dir, &self.a_dir);
-            if pap <= 0.0 {
-                break;
-            }
-            let alpha = rz / pap;
-            for i in 0..n {
-                x[i] += alpha * self.dir[i];
-                self.res[i] -= alpha * self.a_dir[i];
-                self.prec_res[i] = self.res[i] / diag[i];
-            }
-            let rz_new = dot(&self.res, &self.prec_res);
-            let beta = rz_new / rz;
-            rz = rz_new;
-            for i in 0..n {
-                self.dir[i] = self.prec_res[i] + beta * self.dir[i];
-            }
-        }
-        products
     }
 }

@@ -14,6 +14,7 @@
 //! [`monitor::Monitor`], and returns a [`SolveReport`].
 
 pub mod apgd;
+mod conjugate_gradient;
 pub mod cpg;
 pub mod jacobi;
 pub mod latin;

@@ -18,6 +18,7 @@ use super::{Ordering, SolveReport, SolverKind, SolverOptions};
 use crate::parallel::parallel;
 use crate::problem::colouring::Colouring;
 use crate::problem::cone::solve_single_contact;
+use crate::problem::delassus::SweepState;
 use crate::problem::matrix_free::{SharedSlice, Velocities};
 use crate::problem::{ContactProblem, Delassus, Mat2, MatrixFree};
 use rand::{rngs::SmallRng, seq::SliceRandom, SeedableRng};
@@ -85,18 +86,7 @@ fn solve_on(
     let mut rng = SmallRng::seed_from_u64(opts.seed);
     let mut order: Vec<usize> = (0..nc).collect();
     let local = |a: usize, ra: [f64; 2], wr: [f64; 2]| local_solve(p, &diag[a], a, ra, wr, opts.omega);
-
-    let update = |a: usize, r: &mut [f64], state: &mut _| {
-        let wr = p.w.row(a, r, state);
-        let ra = [r[2 * a], r[2 * a + 1]];
-        let rn = local(a, ra, wr);
-        let dr = [rn[0] - ra[0], rn[1] - ra[1]];
-        if dr != [0.0, 0.0] {
-            r[2 * a] = rn[0];
-            r[2 * a + 1] = rn[1];
-            p.w.record_change(a, dr, state);
-        }
-    };
+    let update = |a: usize, r: &mut [f64], state: &mut SweepState| update_contact(p, &diag, opts.omega, a, r, state);
 
     loop {
         match (colours, &p.w, opts.ordering) {
@@ -121,10 +111,31 @@ fn solve_on(
     monitor.finish(r)
 }
 
+/// Contact `a`'s Gauss–Seidel update of `r` and of the sweep state.
+#[inline]
+pub(super) fn update_contact(
+    p: &ContactProblem,
+    diag: &[Mat2],
+    omega: f64,
+    a: usize,
+    r: &mut [f64],
+    state: &mut SweepState,
+) {
+    let wr = p.w.row(a, r, state);
+    let ra = [r[2 * a], r[2 * a + 1]];
+    let rn = local_solve(p, &diag[a], a, ra, wr, omega);
+    let dr = [rn[0] - ra[0], rn[1] - ra[1]];
+    if dr != [0.0, 0.0] {
+        r[2 * a] = rn[0];
+        r[2 * a + 1] = rn[1];
+        p.w.record_change(a, dr, state);
+    }
+}
+
 /// The new impulse of contact `a` (now `ra`, with `wr = (W r)_a`): the exact single-contact
 /// solve against all others, relaxed by ω.
 #[inline]
-pub(super) fn local_solve(p: &ContactProblem, d: &Mat2, a: usize, ra: [f64; 2], wr: [f64; 2], omega: f64) -> [f64; 2] {
+fn local_solve(p: &ContactProblem, d: &Mat2, a: usize, ra: [f64; 2], wr: [f64; 2], omega: f64) -> [f64; 2] {
     // Velocity of contact a with its own impulse removed.
     let q_local =
         [p.q[2 * a] + wr[0] - (d[0] * ra[0] + d[1] * ra[1]), p.q[2 * a + 1] + wr[1] - (d[2] * ra[0] + d[3] * ra[1])];

@@ -17,8 +17,9 @@ use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{MatMut, Side};
 
+use super::conjugate_gradient::ConjugateGradient;
 use super::monitor::Monitor;
-use super::nlgs::local_solve;
+use super::nlgs::update_contact;
 use super::{SolveReport, SolverKind, SolverOptions};
 use crate::problem::{dot, BlockSparse, ContactProblem, Mat2};
 
@@ -113,15 +114,7 @@ impl TrescaSystem {
 fn sweep(p: &ContactProblem, diag: &[Mat2], omega: f64, r: &mut [f64]) {
     let mut state = p.w.sweep_state(r);
     for a in 0..p.n_contacts() {
-        let wr = p.w.row(a, r, &state);
-        let ra = [r[2 * a], r[2 * a + 1]];
-        let rn = local_solve(p, &diag[a], a, ra, wr, omega);
-        let dr = [rn[0] - ra[0], rn[1] - ra[1]];
-        if dr != [0.0, 0.0] {
-            r[2 * a] = rn[0];
-            r[2 * a + 1] = rn[1];
-            p.w.record_change(a, dr, &mut state);
-        }
+        update_contact(p, diag, omega, a, r, &mut state);
     }
 }
 
@@ -144,7 +137,7 @@ enum Correction {
     /// Sparse Cholesky on `W`'s pattern, refreshed when the free set changes.
     Direct(BlockSparse, Box<TrescaSystem>),
     /// CG on `W` products restricted to the free set.
-    MatrixFree,
+    MatrixFree(Box<ConjugateGradient>),
 }
 
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveReport {
@@ -162,10 +155,10 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, direct:
             let w = p.w.to_block_sparse();
             match TrescaSystem::new(&w) {
                 Ok(system) => Correction::Direct(w, Box::new(system)),
-                Err(_) => Correction::MatrixFree,
+                Err(_) => Correction::MatrixFree(Box::new(ConjugateGradient::new(n))),
             }
         }
-        false => Correction::MatrixFree,
+        false => Correction::MatrixFree(Box::new(ConjugateGradient::new(n))),
     };
     let (mut u, mut correction, mut wd, mut rhs) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let mut free = vec![false; n];
@@ -206,8 +199,14 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, direct:
                     true
                 }
             }
-            Correction::MatrixFree => {
-                monitor.w_products += masked_cg(p, &free, &rhs, &mut correction, CG_PRODUCTS);
+            Correction::MatrixFree(cg) => {
+                // CG on P W P c = rhs (P the free mask) from c = 0.
+                correction.iter_mut().for_each(|c| *c = 0.0);
+                let masked = |v: &[f64], out: &mut [f64]| {
+                    p.w.apply(v, out);
+                    out.iter_mut().zip(&free).filter(|(_, f)| !**f).for_each(|(o, _)| *o = 0.0);
+                };
+                monitor.w_products += cg.solve(masked, None, &rhs, &mut correction, 1e-10, CG_PRODUCTS);
                 true
             }
         };
@@ -237,44 +236,6 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, direct:
         next_try = monitor.iteration() + interval;
     }
     monitor.finish(r)
-}
-
-/// CG on `P W P x = b` (P the free mask) from x = 0, `k` products at most.
-fn masked_cg(p: &ContactProblem, free: &[bool], b: &[f64], x: &mut [f64], k: usize) -> usize {
-    let n = b.len();
-    x.iter_mut().for_each(|v| *v = 0.0);
-    let mut res = b.to_vec();
-    let mut dir = res.clone();
-    let mut wd = vec![0.0; n];
-    let mut rr = dot(&res, &res);
-    let b2 = rr;
-    for it in 0..k {
-        if rr <= 1e-20 * b2 {
-            return it;
-        }
-        p.w.apply(&dir, &mut wd);
-        for i in 0..n {
-            if !free[i] {
-                wd[i] = 0.0;
-            }
-        }
-        let dwd = dot(&dir, &wd);
-        if dwd <= 0.0 {
-            return it + 1;
-        }
-        let alpha = rr / dwd;
-        for i in 0..n {
-            x[i] += alpha * dir[i];
-            res[i] -= alpha * wd[i];
-        }
-        let rr_new = dot(&res, &res);
-        let beta = rr_new / rr;
-        rr = rr_new;
-        for i in 0..n {
-            dir[i] = res[i] + beta * dir[i];
-        }
-    }
-    k
 }
 
 #[cfg(test)]
