@@ -303,6 +303,49 @@ fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
         .output()
         .unwrap();
     assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("steps.csv"));
+    // `moreau picture` redraws a saved step coloured by pressure, and the run as an animation.
+    let picture = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_moreau")).arg("picture").arg(&out).args(args).output().unwrap()
+    };
+    let o = picture(&["--step", "20", "--color", "pressure"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.join("state_000020.png").exists());
+    let o = picture(&["--animate", "--width", "400"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut gif = gif::DecodeOptions::new().read_info(std::fs::File::open(out.join("run.gif")).unwrap()).unwrap();
+    assert_eq!(gif.width(), 400);
+    let mut frames = 0;
+    while gif.read_next_frame().unwrap().is_some() {
+        frames += 1;
+    }
+    assert_eq!(frames, 3, "steps 0, 20 and 40 were saved");
+    let o = picture(&["--step", "7"]);
+    assert!(!o.status.success());
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("--step 7: ")
+            && String::from_utf8_lossy(&o.stderr).contains("steps 0, 20, 40")
+    );
+    let o = picture(&["--color", "temperature"]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("temperature"));
+    // What a picture reads back from the VTK files is the simulation's state.
+    let mut sim = Simulation::from_scene(&scenes_dir().join("pile.toml")).unwrap();
+    for _ in 0..10 {
+        sim.step().unwrap();
+    }
+    moreau::io::vtk::write_step(&sim, &out, 10).unwrap();
+    let (live, saved) = (moreau::io::picture::Frame::of(&sim), moreau::io::picture::Frame::read(&out, 10).unwrap());
+    assert_eq!(live.grains.len(), saved.grains.len());
+    assert_eq!(live.chains.len(), saved.chains.len());
+    for (a, b) in live.grains.iter().zip(&saved.grains) {
+        assert!(a.position == b.position && a.radius == b.radius && a.velocity == b.velocity && a.tag == b.tag);
+    }
+    for (a, b) in live.chains.iter().zip(&saved.chains) {
+        assert!(
+            (a.body, a.other, a.from, a.to, a.force, a.normal) == (b.body, b.other, b.from, b.to, b.force, b.normal)
+        );
+    }
+    assert_eq!(live.pressures(), saved.pressures());
+    assert_eq!(live.walls, saved.walls);
     // The dumped problem is a valid Siconos file that `moreau solve` solves.
     let problem = moreau::io::siconos::read_fc2d(&out.join("problem_000030.dat")).unwrap();
     assert!(problem.n_contacts() > 0);

@@ -103,6 +103,10 @@ enum Command {
         #[arg(long, default_value_t = 25)]
         bins: usize,
     },
+    /// Redraw a run's saved state (its VTK files): grains coloured by tag, speed or pressure,
+    /// force chains, axes, scale bar, time and legend, as PNG; or every saved step as an
+    /// animated GIF.
+    Picture(PictureArgs),
     /// Check a scene file without running it: errors, then warnings about its start (grains
     /// overlapping, outside or inside walls, a time step too long for the fastest grain).
     Check {
@@ -158,6 +162,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Solve(args) => solve_command(args),
         Command::Check { scene, strict } => check_command(&scene, strict),
         Command::Stats { contacts, bins } => stats_command(&contacts, bins),
+        Command::Picture(args) => picture_command(args),
         Command::Bench(args) => bench::bench_command(args),
         Command::Sweep(args) => sweep::sweep_command(args),
         Command::FrictionStudy(args) => sweep::friction_command(args),
@@ -192,6 +197,82 @@ fn run(cli: Cli) -> Result<()> {
             println!("wrote {} ({} contacts)", out.display(), problem.n_contacts());
             Ok(())
         }
+    }
+}
+
+#[derive(clap::Args)]
+struct PictureArgs {
+    /// A run's output directory (with grains_NNNNNN.vtu, contacts_… and walls_…).
+    dir: PathBuf,
+    /// Step to draw (default: the last saved).
+    #[arg(long, conflicts_with = "animate")]
+    step: Option<usize>,
+    /// What colours the grains.
+    #[arg(long, default_value = "tag", value_parser = crate::io::picture::Colouring::NAMES)]
+    color: String,
+    /// Picture width in pixels.
+    #[arg(long, default_value_t = 1200)]
+    width: u32,
+    /// Every saved step as an animated GIF (default file: DIR/run.gif).
+    #[arg(long)]
+    animate: bool,
+    /// Time between the frames of an animation (ms).
+    #[arg(long, default_value_t = 100)]
+    frame_ms: u32,
+    /// Output file (default: DIR/state_NNNNNN.png, or DIR/run.gif).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+fn picture_command(a: PictureArgs) -> Result<()> {
+    use crate::io::picture::{default_path, saved_steps, write_gif, write_png, Colouring, Frame};
+    if !(200..=8000).contains(&a.width) {
+        bail!("--width {}: must lie in 200..=8000 pixels", a.width);
+    }
+    let colouring: Colouring = a.color.parse().map_err(|e: String| anyhow::anyhow!(e))?;
+    let steps = saved_steps(&a.dir)?;
+    if !crate::io::plots::font_available() {
+        eprintln!(
+            "warning: no TrueType font (install fonts-dejavu-core or set MOREAU_FONT): no axes, legend or labels"
+        );
+    }
+    if a.animate {
+        let frames = steps.iter().map(|&s| Frame::read(&a.dir, s)).collect::<Result<Vec<_>>>()?;
+        let path = a.out.unwrap_or_else(|| default_path(&a.dir, None));
+        write_gif(&frames, colouring, a.width, a.frame_ms, &path)?;
+        println!(
+            "wrote {} ({} frames, steps {} to {})",
+            path.display(),
+            frames.len(),
+            steps[0],
+            steps[steps.len() - 1]
+        );
+        return Ok(());
+    }
+    let step = a.step.unwrap_or(steps[steps.len() - 1]);
+    if !steps.contains(&step) {
+        bail!("--step {step}: {} has VTK files of steps {}", a.dir.display(), list_steps(&steps));
+    }
+    let frame = Frame::read(&a.dir, step)?;
+    let path = a.out.unwrap_or_else(|| default_path(&a.dir, Some(step)));
+    write_png(&frame, colouring, a.width, &path)?;
+    println!(
+        "wrote {} (step {step}, {} grains, {} contacts, coloured by {})",
+        path.display(),
+        frame.grains.len(),
+        frame.chains.len(),
+        a.color
+    );
+    Ok(())
+}
+
+/// `0, 50, 100, …, 500` (at most a dozen named).
+fn list_steps(steps: &[usize]) -> String {
+    let named: Vec<String> = steps.iter().take(12).map(|s| s.to_string()).collect();
+    if steps.len() > 12 {
+        format!("{}, … {} (of {})", named.join(", "), steps[steps.len() - 1], steps.len())
+    } else {
+        named.join(", ")
     }
 }
 

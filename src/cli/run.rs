@@ -246,7 +246,8 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         }
         if report.step == picture_step {
             let path = output.dir.join(format!("state_{:06}.png", report.step));
-            crate::io::picture::write_png(&sim, &path, 1200)?;
+            let frame = crate::io::picture::Frame::of(&sim);
+            crate::io::picture::write_png(&frame, crate::io::picture::Colouring::Tag, 1200, &path)?;
         }
     }
     bar.finish_and_clear();

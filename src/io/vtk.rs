@@ -163,24 +163,88 @@ pub fn write_step(sim: &Simulation, dir: &Path, index: usize) -> Result<[PathBuf
 /// The name of the contacts' status array, which ParaView shows as its legend.
 pub const STATUS_LEGEND: &str = "status: 0 open, 1 stick, 2 slide r_t=+mu r_n, 3 slide r_t=-mu r_n";
 
-/// The cell array `name` of a `.vtu` file (a contacts file's `normal_impulse`, say), as f64.
-pub fn read_cell_array(path: &Path, name: &str) -> Result<Vec<f64>> {
+/// A `.vtu` file read back: points (x, y), cells, and its point and cell arrays as f64.
+pub(crate) struct Grid {
+    path: PathBuf,
+    pub points: Vec<glam::DVec2>,
+    connectivity: Vec<u64>,
+    offsets: Vec<u64>,
+    pub types: Vec<CellType>,
+    point: Vec<(String, Vec<f64>)>,
+    cell: Vec<(String, Vec<f64>)>,
+}
+
+impl Grid {
+    fn array<'a>(&self, arrays: &'a [(String, Vec<f64>)], name: &str, kind: &str) -> Result<&'a [f64]> {
+        let found = arrays.iter().find(|(n, _)| n == name).map(|(_, v)| v.as_slice());
+        found.ok_or_else(|| {
+            anyhow::anyhow!("{}: no {kind} array {name:?} (is it a moreau output?)", self.path.display())
+        })
+    }
+
+    pub fn point_array(&self, name: &str) -> Result<&[f64]> {
+        self.array(&self.point, name, "point")
+    }
+
+    pub fn cell_array(&self, name: &str) -> Result<&[f64]> {
+        self.array(&self.cell, name, "cell")
+    }
+
+    /// Each cell's points, in order (points out of range are left out).
+    pub fn cells(&self) -> impl Iterator<Item = Vec<glam::DVec2>> + '_ {
+        (0..self.offsets.len()).map(|c| {
+            let start = if c == 0 { 0 } else { self.offsets[c - 1] as usize };
+            let end = (self.offsets[c] as usize).min(self.connectivity.len());
+            self.connectivity[start.min(end)..end]
+                .iter()
+                .filter_map(|&i| self.points.get(i as usize).copied())
+                .collect()
+        })
+    }
+}
+
+/// Reads an unstructured-grid `.vtu` file (one inline piece, as moreau writes them).
+pub(crate) fn read_grid(path: &Path) -> Result<Grid> {
     use vtkio::model::Piece;
     let vtk = Vtk::import(path).map_err(|e| anyhow::anyhow!("{}: not a VTK file moreau reads: {e}", path.display()))?;
     let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
         anyhow::bail!("{}: not an unstructured grid (.vtu)", path.display());
     };
-    let arrays = pieces.iter().filter_map(|p| if let Piece::Inline(p) = p { Some(&p.data.cell) } else { None });
-    for cell in arrays {
-        for a in cell {
-            if let Attribute::DataArray(d) = a {
-                if d.name == name {
-                    return d.data.clone().cast_into::<f64>().ok_or_else(|| anyhow::anyhow!("{name}: not numbers"));
-                }
-            }
-        }
-    }
-    anyhow::bail!("{}: no cell array {name:?} (is it a moreau contacts_NNNNNN.vtu?)", path.display())
+    let Some(Piece::Inline(piece)) = pieces.into_iter().next() else {
+        anyhow::bail!("{}: no inline piece", path.display());
+    };
+    let piece = *piece;
+    let coords: Vec<f64> =
+        piece.points.cast_into().ok_or_else(|| anyhow::anyhow!("{}: points are not numbers", path.display()))?;
+    let points = coords.chunks_exact(3).map(|p| glam::DVec2::new(p[0], p[1])).collect();
+    let (connectivity, offsets) = piece.cells.cell_verts.into_xml();
+    let arrays = |attributes: Vec<Attribute>| -> Vec<(String, Vec<f64>)> {
+        attributes
+            .into_iter()
+            .filter_map(|a| match a {
+                Attribute::DataArray(d) => Some((d.name.clone(), d.data.cast_into::<f64>()?)),
+                Attribute::Field { .. } => None,
+            })
+            .collect()
+    };
+    Ok(Grid {
+        path: path.to_path_buf(),
+        points,
+        connectivity,
+        offsets,
+        types: piece.cells.types,
+        point: arrays(piece.data.point),
+        cell: arrays(piece.data.cell),
+    })
+}
+
+/// The cell array `name` of a `.vtu` file (a contacts file's `normal_impulse`, say), as f64.
+pub fn read_cell_array(path: &Path, name: &str) -> Result<Vec<f64>> {
+    let grid = read_grid(path)?;
+    let values = grid.cell_array(name).map_err(|_| {
+        anyhow::anyhow!("{}: no cell array {name:?} (is it a moreau contacts_NNNNNN.vtu?)", path.display())
+    })?;
+    Ok(values.to_vec())
 }
 
 /// A ParaView collection (`.pvd`) of (time, file) pairs.
