@@ -133,6 +133,10 @@ fn moreau_check_reports_a_scenes_problems_without_running_it() {
         disk_scene("1e-3", "0.05", "0.0", "-9.81", true) + "[[body]]\ndisk = { center = [0.0, 0.5], radius = 0.05 }\n";
     let (ok, text) = check("overlap", &overlapping, false);
     assert!(ok && text.contains("same position (first: bodies 0 and 1") && text.contains("1 warning"), "{text}");
+    let deep =
+        disk_scene("1e-3", "0.05", "0.0", "-9.81", true) + "[[body]]\ndisk = { center = [0.0, 0.58], radius = 0.05 }\n";
+    let (ok, text) = check("deep", &deep, false);
+    assert!(ok && text.contains("1 pair(s) of bodies start overlapping") && text.contains("2.000e-2 m"), "{text}");
     let (ok, text) = check("overlap_strict", &overlapping, true);
     assert!(!ok && text.contains("--strict: 1 warning"), "{text}");
     let (ok, text) = check("fast", &disk_scene("1e6", "0.01", "0.0", "-9.81", true), false);

@@ -288,3 +288,99 @@ fn contacts_are_warm_started_from_the_previous_step() {
         cold.iterations
     );
 }
+
+/// A square lattice of equal disks filling a box whose walls are frictionless, under a piston: a
+/// plate as wide as the box (less 1 mm), its rotation locked, mass 2 kg, pushed down by `force`
+/// newtons. (NLGS stalls near 2e-8 on the plate's five frictional contacts: tol 1e-7.)
+fn piston_on_lattice(force: f64) -> String {
+    let mut bodies = String::new();
+    for row in 0..3 {
+        for col in 0..5 {
+            let (x, y) = (0.01 + 0.02 * col as f64, 0.01 + 0.02 * row as f64);
+            bodies.push_str(&format!("[[body]]\ndisk = {{ center = [{x}, {y}], radius = 0.01 }}\n"));
+        }
+    }
+    format!(
+        r#"
+effects = ["gravity", "friction", "rotation"]
+[time]
+step = 1e-3
+steps = 200
+[solver]
+name = "nlgs"
+tol = 1e-7
+max_iter = 20000
+[contact]
+friction = 0.5
+[[material]]
+name = "glass"
+density = 2500.0
+[[material]]
+name = "steel"
+density = 7800.0
+[[interaction]]
+materials = ["steel", "steel"]
+friction = 0.0
+[[interaction]]
+materials = ["glass", "steel"]
+friction = 0.0
+[[wall]]
+container = {{ min = [0.0, 0.0], max = [0.1, 0.2] }}
+material = "steel"
+[[body]]
+polygon = {{ center = [0.05, 0.0651], vertices = [[-0.0495, -0.005], [0.0495, -0.005], [0.0495, 0.005], [-0.0495, 0.005]] }}
+material = "steel"
+mass = 2.0
+force = [0.0, {force:?}]
+lock_rotation = true
+{bodies}"#
+    )
+}
+
+#[test]
+fn a_piston_under_a_constant_force_settles_to_force_balance_with_the_pile() {
+    let (mut sim, steps) = simulation(&piston_on_lattice(-500.0));
+    for _ in 0..steps {
+        let report = sim.step().unwrap();
+        assert!(report.converged, "step {}: {}", report.step, report.stop_reason);
+    }
+    // At rest, the grains push back on the piston with the imposed force plus its weight.
+    let load = sim.body_load(0);
+    let expected = 500.0 + 2.0 * 9.81;
+    assert!((load.force[1] - expected).abs() <= 1e-6 * expected, "grains on the piston: {:?}", load.force);
+    assert!(load.force[0].abs() <= 1e-6 * expected, "{:?}", load.force);
+    assert_eq!(sim.angle(0), 0.0, "the piston's rotation is locked");
+    assert!(sim.velocity(0).length() < 1e-6, "at rest: {}", sim.velocity(0));
+    // And the floor carries the piston's load and the grains' weight (frictionless side walls
+    // carry nothing vertical).
+    let grains: f64 = (1..sim.body_count()).map(|k| sim.world.bodies.mass[k]).sum();
+    let floor = sim.wall_loads()[1].force[1];
+    let total = expected + grains * 9.81;
+    assert!((floor + total).abs() <= 1e-6 * total, "floor {floor} vs {total}");
+}
+
+#[test]
+fn a_driven_body_in_free_flight_accelerates_by_force_over_mass_plus_gravity() {
+    let (mut sim, _) =
+        simulation(&piston_on_lattice(-500.0).replace("center = [0.05, 0.0651]", "center = [0.05, 0.15]"));
+    for _ in 0..20 {
+        sim.step().unwrap();
+    }
+    let expected = -(500.0 / 2.0 + 9.81) * 20.0 * 1e-3;
+    assert!((sim.velocity(0).y - expected).abs() < 1e-12 * expected.abs(), "{} vs {expected}", sim.velocity(0).y);
+}
+
+#[test]
+fn scenes_refuse_a_force_on_a_fixed_body_and_a_mass_that_is_not_positive() {
+    for (change, named) in [
+        ("lock_rotation = true", "lock_rotation = true\nfixed = true"),
+        ("mass = 2.0", "mass = -2.0"),
+        ("mass = 2.0", "mass = 0.0"),
+        ("force = [0.0, -500.0]", "force = [0.0, nan]"),
+    ] {
+        let text = piston_on_lattice(-500.0).replace(change, named);
+        let e = scene::parse(&text, Path::new("piston.toml")).err().unwrap_or_else(|| panic!("{named} accepted"));
+        let msg = e.to_string();
+        assert!(msg.contains("body[0]") && msg.contains("piston.toml"), "{named}: {msg}");
+    }
+}

@@ -208,6 +208,7 @@ pub fn run_command(a: RunArgs) -> Result<()> {
             }
         };
         output.record(&report, &sim.measures())?;
+        output.record_driven(&sim)?;
         if wall_forces {
             output.record_walls(&sim)?;
         }

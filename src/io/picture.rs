@@ -222,9 +222,10 @@ impl Frame {
         self.grains.iter().zip(trace).map(|(g, t)| -0.5 * t / g.area().max(f64::MIN_POSITIVE)).collect()
     }
 
-    /// The region a picture shows: the grains, leaving out strays (grains more than three mean
+    /// The region a picture shows: the grains, leaving out strays (grains more than three
     /// diameters beyond the 0.2 % and 99.8 % quantiles of the grains' extents), with a margin of
-    /// a diameter. Without grains, the walls.
+    /// a diameter. Bodies four times the median radius or more (plates, pistons) are never left
+    /// out. Without bodies, the walls.
     pub fn extent(&self) -> Option<(DVec2, DVec2)> {
         if self.grains.is_empty() {
             let points = self.walls.iter().flatten();
@@ -232,21 +233,22 @@ impl Frame {
             let hi = points.fold(DVec2::splat(f64::NEG_INFINITY), |a, &p| a.max(p));
             return lo.cmple(hi).all().then_some((lo, hi));
         }
-        let diameter = 2.0 * self.grains.iter().map(|g| g.radius).sum::<f64>() / self.grains.len() as f64;
-        let quantile = |values: &mut Vec<f64>, q: f64| {
+        let quantile = |mut values: Vec<f64>, q: f64| {
             values.sort_by(f64::total_cmp);
             values[((values.len() - 1) as f64 * q).round() as usize]
         };
+        let median_radius = quantile(self.grains.iter().map(|g| g.radius).collect(), 0.5);
+        let diameter = 2.0 * median_radius;
         let mut band = [(0.0, 0.0); 2];
         for (axis, b) in band.iter_mut().enumerate() {
-            let mut lows: Vec<f64> = self.grains.iter().map(|g| g.position[axis] - g.radius).collect();
-            let mut highs: Vec<f64> = self.grains.iter().map(|g| g.position[axis] + g.radius).collect();
-            *b = (quantile(&mut lows, 0.002) - 3.0 * diameter, quantile(&mut highs, 0.998) + 3.0 * diameter);
+            let lows = self.grains.iter().map(|g| g.position[axis] - g.radius).collect();
+            let highs = self.grains.iter().map(|g| g.position[axis] + g.radius).collect();
+            *b = (quantile(lows, 0.002) - 3.0 * diameter, quantile(highs, 0.998) + 3.0 * diameter);
         }
-        let kept = self
-            .grains
-            .iter()
-            .filter(|g| (0..2).all(|axis| g.position[axis] >= band[axis].0 && g.position[axis] <= band[axis].1));
+        let kept = self.grains.iter().filter(|g| {
+            g.radius >= 4.0 * median_radius
+                || (0..2).all(|axis| g.position[axis] >= band[axis].0 && g.position[axis] <= band[axis].1)
+        });
         let (lo, hi) = kept.fold((DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)), |(lo, hi), g| {
             (lo.min(g.position - g.radius), hi.max(g.position + g.radius))
         });
@@ -685,6 +687,10 @@ mod tests {
         let (lo, hi) = frame.extent().unwrap();
         assert!(lo.x > -0.3 && lo.y > -0.3 && hi.x < 2.3 && hi.y < 2.3, "{lo} {hi}");
         assert!(lo.x < -0.05 && hi.y > 1.95, "the pile itself is in: {lo} {hi}");
+        // A plate (a piston) far above the pile is part of the picture.
+        frame.grains.push(disk(1.0, 5.0, 1.0, DVec2::ZERO));
+        let (_, hi) = frame.extent().unwrap();
+        assert!(hi.y > 6.0 && hi.x < 2.3, "{hi}");
     }
 
     #[test]

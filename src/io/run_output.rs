@@ -53,6 +53,23 @@ struct WallRow {
     moment: f64,
 }
 
+/// One row of `driven.csv`: a body driven by a constant force (a piston), its motion, the force
+/// imposed on it and the contacts' mean force on it.
+#[derive(Serialize)]
+struct DrivenRow {
+    step: usize,
+    time: f64,
+    body: usize,
+    x: f64,
+    y: f64,
+    vx: f64,
+    vy: f64,
+    imposed_fx: f64,
+    imposed_fy: f64,
+    contact_fx: f64,
+    contact_fy: f64,
+}
+
 /// Totals over a run, written as `summary.json`.
 #[derive(Serialize, Debug, Clone, Default)]
 pub struct RunSummary {
@@ -169,6 +186,7 @@ pub struct RunOutput {
     pub dir: PathBuf,
     csv: csv::Writer<File>,
     walls_csv: Option<csv::Writer<File>>,
+    driven_csv: Option<csv::Writer<File>>,
     grains: Vec<(f64, PathBuf)>,
     contacts: Vec<(f64, PathBuf)>,
     walls: Vec<(f64, PathBuf)>,
@@ -187,6 +205,7 @@ impl RunOutput {
             dir: dir.to_path_buf(),
             csv,
             walls_csv: None,
+            driven_csv: None,
             grains: Vec::new(),
             contacts: Vec::new(),
             walls: Vec::new(),
@@ -194,15 +213,9 @@ impl RunOutput {
         Ok((out, removed))
     }
 
-    /// One row of steps.csv: the step's report and the measures of the state it left.
     /// Rows of walls.csv for the step just taken: each wall's position and load.
     pub fn record_walls(&mut self, sim: &Simulation) -> Result<()> {
-        if self.walls_csv.is_none() {
-            let path = self.dir.join("walls.csv");
-            let csv = csv::Writer::from_path(&path).with_context(|| format!("creating {}", path.display()))?;
-            self.walls_csv = Some(csv);
-        }
-        let csv = self.walls_csv.as_mut().expect("created above");
+        let csv = writer(&mut self.walls_csv, &self.dir.join("walls.csv"))?;
         for (w, (wall, load)) in sim.world.walls.iter().zip(sim.wall_loads()).enumerate() {
             csv.serialize(WallRow {
                 step: sim.steps_done(),
@@ -219,6 +232,33 @@ impl RunOutput {
         Ok(())
     }
 
+    /// Rows of driven.csv for the step just taken: each body driven by a force (none: no file).
+    pub fn record_driven(&mut self, sim: &Simulation) -> Result<()> {
+        let b = &sim.world.bodies;
+        if b.driven().next().is_none() {
+            return Ok(());
+        }
+        let csv = writer(&mut self.driven_csv, &self.dir.join("driven.csv"))?;
+        for k in b.driven() {
+            let load = sim.body_load(k);
+            csv.serialize(DrivenRow {
+                step: sim.steps_done(),
+                time: sim.time(),
+                body: k,
+                x: b.position[k].x,
+                y: b.position[k].y,
+                vx: b.velocity[k].x,
+                vy: b.velocity[k].y,
+                imposed_fx: b.force[k].x,
+                imposed_fy: b.force[k].y,
+                contact_fx: load.force[0],
+                contact_fy: load.force[1],
+            })?;
+        }
+        Ok(())
+    }
+
+    /// One row of steps.csv: the step's report and the measures of the state it left.
     pub fn record(&mut self, r: &StepReport, m: &Measures) -> Result<()> {
         self.csv.serialize(Row {
             step: r.step,
@@ -263,7 +303,7 @@ impl RunOutput {
 
     pub fn finish(mut self, summary: &RunSummary) -> Result<()> {
         self.csv.flush()?;
-        if let Some(w) = self.walls_csv.as_mut() {
+        for w in [&mut self.walls_csv, &mut self.driven_csv].into_iter().flatten() {
             w.flush()?;
         }
         let path = self.dir.join("summary.json");
@@ -272,15 +312,32 @@ impl RunOutput {
     }
 }
 
-/// Is `name` a file that `moreau run` writes?
+/// The CSV writer `slot` holds, created at `path` on first use.
+fn writer<'a>(slot: &'a mut Option<csv::Writer<File>>, path: &Path) -> Result<&'a mut csv::Writer<File>> {
+    if slot.is_none() {
+        *slot = Some(csv::Writer::from_path(path).with_context(|| format!("creating {}", path.display()))?);
+    }
+    Ok(slot.as_mut().expect("created above"))
+}
+
+/// Is `name` a file that `moreau run` (or `moreau picture`) writes?
 fn is_run_output(name: &str) -> bool {
     let numbered = |prefix: &str, ext: &str| {
         name.strip_prefix(prefix)
             .and_then(|rest| rest.strip_suffix(ext))
             .is_some_and(|digits| !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit()))
     };
-    matches!(name, "steps.csv" | "walls.csv" | "summary.json" | "grains.pvd" | "contacts.pvd" | "walls.pvd")
-        || numbered("grains_", ".vtu")
+    matches!(
+        name,
+        "steps.csv"
+            | "walls.csv"
+            | "driven.csv"
+            | "summary.json"
+            | "grains.pvd"
+            | "contacts.pvd"
+            | "walls.pvd"
+            | "run.gif"
+    ) || numbered("grains_", ".vtu")
         || numbered("contacts_", ".vtu")
         || numbered("walls_", ".vtu")
         || numbered("state_", ".png")

@@ -213,6 +213,9 @@ struct BodyFileSpec {
     angle: Option<f64>,
     fixed: Option<bool>,
     tag: Option<u32>,
+    force: Option<P>,
+    lock_rotation: Option<bool>,
+    mass: Option<f64>,
 }
 
 #[derive(Deserialize, Clone, Copy, PartialEq, Eq)]
@@ -495,6 +498,9 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         body.angle = spec.angle.or(spec.regular.as_ref().and_then(|r| r.angle)).unwrap_or(0.0);
         body.fixed = spec.fixed.unwrap_or(false);
         body.tag = spec.tag.unwrap_or(0);
+        body.force = spec.force.map(v).unwrap_or(DVec2::ZERO);
+        body.lock_rotation = spec.lock_rotation.unwrap_or(false);
+        body.mass = spec.mass;
         if body.spin != 0.0 && !effects.rotation {
             warnings.push(format!("body[{k}] has a spin but the effect `rotation` is not named: it is ignored"));
         }

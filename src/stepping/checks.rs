@@ -114,15 +114,26 @@ fn start_overlaps(world: &World) -> Vec<String> {
     }
     let config = Configuration { position: &b.position, angle: &b.angle };
     let contacts = Detector::default().detect(b, &config, &world.walls, 0.0, &[], &[]);
-    let (mut in_wall, mut coincident) = (Vec::new(), Vec::new());
+    let (mut in_wall, mut coincident, mut overlapping) = (Vec::new(), Vec::new(), Vec::new());
     for c in &contacts {
         match c.other {
             Antagonist::Wall(w) if -c.gap > 1e-3 * b.bounding_radius[c.i] => in_wall.push((c.i, w, -c.gap)),
             Antagonist::Body(j) if b.position[c.i].distance(b.position[j]) <= 1e-9 * b.bounding_radius[c.i] => {
                 coincident.push((c.i, j))
             }
+            // Moreau–Jean keeps overlaps it starts with (it stops approach, it does not push apart).
+            Antagonist::Body(j) if -c.gap > 1e-2 * b.bounding_radius[c.i].min(b.bounding_radius[j]) => {
+                overlapping.push((c.i, j, -c.gap))
+            }
             _ => {}
         }
+    }
+    if let Some(&(i, j, depth)) = overlapping.iter().max_by(|a, b| a.2.total_cmp(&b.2)) {
+        warnings.push(format!(
+            "{} pair(s) of bodies start overlapping by more than 1 % of the smaller radius (deepest: bodies {i} and {j}, \
+             {depth:.3e} m); the overlaps stay",
+            overlapping.len()
+        ));
     }
     if let Some(&(k, w, depth)) = in_wall.first() {
         warnings.push(format!(

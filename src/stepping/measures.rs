@@ -124,6 +124,24 @@ impl Simulation {
         }
         loads
     }
+
+    /// The contacts' mean force and moment (about its centre) on body `k` over the last step:
+    /// for a piston, what the grains push back with.
+    pub fn body_load(&self, k: usize) -> WallLoad {
+        let mut load = WallLoad::default();
+        let h = self.settings.h;
+        for c in &self.contacts {
+            let on_body = match c.contact.other {
+                _ if c.contact.i == k => c.force(h),
+                Antagonist::Body(j) if j == k => -c.force(h),
+                _ => continue,
+            };
+            load.force[0] += on_body.x;
+            load.force[1] += on_body.y;
+            load.moment += (c.contact.point - self.world.bodies.position[k]).perp_dot(on_body);
+        }
+        load
+    }
 }
 
 /// The probability density of normal forces over their mean (the granular physicist's first

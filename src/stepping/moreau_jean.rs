@@ -119,7 +119,12 @@ fn free_velocities(world: &World, forces: &[(DVec2, f64)], dofs: Dofs, h: f64) -
             }
         }
     }
-    // A host's forces for this step (see `Simulation::apply_force`).
+    // Constant forces of driven bodies (pistons), then a host's forces for this step (see
+    // `Simulation::apply_force`).
+    for k in b.driven() {
+        v_free[s * k] += h * b.inv_mass[k] * b.force[k].x;
+        v_free[s * k + 1] += h * b.inv_mass[k] * b.force[k].y;
+    }
     for (k, (force, torque)) in forces.iter().enumerate() {
         v_free[s * k] += h * b.inv_mass[k] * force.x;
         v_free[s * k + 1] += h * b.inv_mass[k] * force.y;

@@ -33,6 +33,14 @@ pub struct BodySpec {
     pub fixed: bool,
     /// A free label carried to the outputs (layer number, group…).
     pub tag: u32,
+    /// A constant force (N) on the body's centre at every step, besides gravity: a piston's
+    /// load, a pressure times the plate's width.
+    pub force: DVec2,
+    /// The body keeps its angle (infinite moment of inertia): a piston plate that must not tilt.
+    pub lock_rotation: bool,
+    /// The mass (kg), instead of the material's density times the area; the moment of inertia
+    /// scales with it.
+    pub mass: Option<f64>,
 }
 
 #[derive(Clone, Debug)]
@@ -57,6 +65,9 @@ impl BodySpec {
             material,
             fixed: false,
             tag: 0,
+            force: DVec2::ZERO,
+            lock_rotation: false,
+            mass: None,
         }
     }
 
@@ -97,6 +108,9 @@ pub struct Bodies {
     pub bounding_radius: Vec<f64>,
     pub material: Vec<u16>,
     pub tag: Vec<u32>,
+    /// Constant forces (N) applied at every step ([`BodySpec::force`]); empty while no body has
+    /// one, so that scenes without pistons carry nothing.
+    pub force: Vec<DVec2>,
 }
 
 /// Area, centroid and polar moment of area about the centroid of a counter-clockwise polygon.
@@ -130,6 +144,7 @@ impl Bodies {
             bounding_radius: Vec::new(),
             material: Vec::new(),
             tag: Vec::new(),
+            force: Vec::new(),
         }
     }
 
@@ -144,6 +159,9 @@ impl Bodies {
         self.bounding_radius.remove(k);
         self.material.remove(k);
         self.tag.remove(k);
+        if !self.force.is_empty() {
+            self.force.remove(k);
+        }
         if self.rotation {
             self.angle.remove(k);
             self.spin.remove(k);
@@ -173,6 +191,15 @@ impl Bodies {
         }
         if !(density.is_finite() && density > 0.0) {
             return Err(format!("density {density} must be finite and > 0"));
+        }
+        if !finite(spec.force) {
+            return Err(format!("force [{}, {}] must be finite", spec.force.x, spec.force.y));
+        }
+        if spec.fixed && (spec.force != DVec2::ZERO || spec.mass.is_some()) {
+            return Err("a fixed body takes no force and no mass (it never moves)".into());
+        }
+        if let Some(m) = spec.mass.filter(|m| !(m.is_finite() && *m > 0.0)) {
+            return Err(format!("mass {m} must be finite and > 0"));
         }
         let (shape, area, second_moment, bounding, center) = match &spec.shape {
             SpecShape::Disk { radius } => {
@@ -217,6 +244,8 @@ impl Bodies {
                 (BodyShape::Polygon(self.polygons.len() as u32 - 1), area, polar, size, c)
             }
         };
+        // A given mass sets the density the inertia is computed with.
+        let density = spec.mass.map_or(density, |m| m / area);
         let (mass, inertia) = if spec.fixed { (0.0, 0.0) } else { (density * area, density * second_moment) };
         let representable = |x: f64| x.is_finite() && x > 0.0 && (1.0 / x).is_finite();
         if !spec.fixed && !(representable(mass) && (!self.rotation || representable(inertia))) {
@@ -232,9 +261,10 @@ impl Bodies {
         self.inv_mass.push(if spec.fixed { 0.0 } else { 1.0 / mass });
         if self.rotation {
             self.angle.push(spec.angle);
-            self.spin.push(if spec.fixed { 0.0 } else { spec.spin });
+            let turns = !(spec.fixed || spec.lock_rotation);
+            self.spin.push(if turns { spec.spin } else { 0.0 });
             self.inertia.push(inertia);
-            self.inv_inertia.push(if spec.fixed { 0.0 } else { 1.0 / inertia });
+            self.inv_inertia.push(if turns { 1.0 / inertia } else { 0.0 });
         } else if let BodyShape::Polygon(p) = shape {
             // Without rotation a polygon keeps its initial orientation: bake it in.
             let rot = DVec2::from_angle(spec.angle);
@@ -247,6 +277,10 @@ impl Bodies {
         self.bounding_radius.push(bounding);
         self.material.push(spec.material as u16);
         self.tag.push(spec.tag);
+        if spec.force != DVec2::ZERO || !self.force.is_empty() {
+            self.force.resize(self.len() - 1, DVec2::ZERO);
+            self.force.push(spec.force);
+        }
         Ok(self.len() - 1)
     }
 
@@ -318,6 +352,18 @@ impl Bodies {
             + (self.inertia.capacity() + self.inv_inertia.capacity() + self.bounding_radius.capacity()) * f
             + self.material.capacity() * 2
             + self.tag.capacity() * 4
+            + self.force.capacity() * v
+    }
+
+    /// The constant force on body `k` ([`BodySpec::force`]).
+    #[inline]
+    pub fn force_of(&self, k: usize) -> DVec2 {
+        self.force.get(k).copied().unwrap_or(DVec2::ZERO)
+    }
+
+    /// The bodies driven by a constant force.
+    pub fn driven(&self) -> impl Iterator<Item = usize> + '_ {
+        self.force.iter().enumerate().filter(|(_, f)| **f != DVec2::ZERO).map(|(k, _)| k)
     }
 }
 
