@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use crate::parallel::{parallel, CHUNK};
 
-use crate::world::{Bodies, Wall};
+use crate::world::{Bodies, Periodic, Wall};
 
 /// What body `i` touches.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -33,6 +33,9 @@ pub struct DetectedContact {
     pub normal: DVec2,
     /// Signed distance (negative when overlapping).
     pub gap: f64,
+    /// Where the antagonist body was taken: its position plus this shift (± the periodic cell's
+    /// length for a contact through the boundary; zero otherwise).
+    pub image: DVec2,
 }
 
 impl DetectedContact {
@@ -46,6 +49,8 @@ impl DetectedContact {
 pub struct Configuration<'a> {
     pub position: &'a [DVec2],
     pub angle: &'a [f64],
+    /// A periodic cell along x: pairs are also sought through its boundary.
+    pub periodic: Option<Periodic>,
 }
 
 impl Configuration<'_> {
@@ -61,6 +66,11 @@ pub struct Detector {
     grid: broad_phase::Grid,
     pairs: Vec<(u32, u32)>,
     radius: Vec<f64>,
+    /// With a periodic cell: the bodies and their images near the boundary, the body and shift
+    /// of each image, and the pairs through the boundary (i < j, the shift of j).
+    position: Vec<DVec2>,
+    images: Vec<(u32, f64)>,
+    periodic_pairs: Vec<(u32, u32, f64)>,
 }
 
 impl Detector {
@@ -79,12 +89,15 @@ impl Detector {
     ) -> Vec<DetectedContact> {
         self.radius.clear();
         self.radius.extend((0..bodies.len()).map(|k| bodies.bounding_radius[k] + reach.get(k).copied().unwrap_or(0.0)));
-        self.grid.candidate_pairs(config.position, &self.radius, alert, &mut self.pairs);
+        match config.periodic {
+            None => self.grid.candidate_pairs(config.position, &self.radius, alert, &mut self.pairs),
+            Some(cell) => self.periodic_candidates(config.position, cell, alert),
+        }
         let reach_of = |k: usize| reach.get(k).copied().unwrap_or(0.0);
         let pair_contacts = |pairs: &[(u32, u32)], out: &mut Vec<DetectedContact>| {
             for &(i, j) in pairs {
                 let pair_alert = alert + reach_of(i as usize) + reach_of(j as usize);
-                narrow_phase::body_body(bodies, config, i as usize, j as usize, pair_alert, out);
+                narrow_phase::body_body(bodies, config, (i as usize, j as usize, DVec2::ZERO), pair_alert, out);
             }
         };
         let rmax = self.radius.iter().copied().fold(0.0, f64::max);
@@ -123,7 +136,58 @@ impl Detector {
             pair_contacts(&self.pairs, &mut out);
             wall_contacts(0, bodies.len(), &mut out);
         }
+        for &(i, j, shift) in &self.periodic_pairs {
+            let (i, j) = (i as usize, j as usize);
+            let pair_alert = alert + reach_of(i) + reach_of(j);
+            narrow_phase::body_body(bodies, config, (i, j, DVec2::new(shift, 0.0)), pair_alert, &mut out);
+        }
         out.sort_unstable_by_key(|a| a.key());
         out
+    }
+
+    /// Candidate pairs in a periodic cell: the grid runs over the bodies and the images of those
+    /// within reach of the boundary (shifted by ± the length); a pair of two bodies is direct, a
+    /// body and another's image a pair through the boundary.
+    fn periodic_candidates(&mut self, position: &[DVec2], cell: Periodic, alert: f64) {
+        let n = position.len();
+        let margin = 2.0 * self.radius.iter().copied().fold(0.0, f64::max) + alert;
+        let length = cell.length();
+        self.position.clear();
+        self.position.extend_from_slice(position);
+        self.images.clear();
+        for (k, p) in position.iter().enumerate() {
+            if p.x - cell.x0 < margin {
+                self.images.push((k as u32, length));
+            }
+            if cell.x1 - p.x < margin {
+                self.images.push((k as u32, -length));
+            }
+        }
+        for &(k, shift) in &self.images {
+            self.position.push(position[k as usize] + DVec2::new(shift, 0.0));
+            self.radius.push(self.radius[k as usize]);
+        }
+        let mut all = std::mem::take(&mut self.pairs);
+        self.grid.candidate_pairs(&self.position, &self.radius, alert, &mut all);
+        self.radius.truncate(n);
+        self.periodic_pairs.clear();
+        let images = &self.images;
+        let through = |a: u32, b: u32| -> Option<(u32, u32, f64)> {
+            // `a` is a body, `b` an image: the pair (a, body of b), the shift given to the larger index.
+            let (k, shift) = images[b as usize - n];
+            match a.cmp(&k) {
+                std::cmp::Ordering::Less => Some((a, k, shift)),
+                std::cmp::Ordering::Greater => Some((k, a, -shift)),
+                std::cmp::Ordering::Equal => None,
+            }
+        };
+        let n32 = n as u32;
+        self.periodic_pairs.extend(all.iter().filter_map(|&(a, b)| match (a < n32, b < n32) {
+            (true, false) => through(a, b),
+            (false, true) => through(b, a),
+            _ => None,
+        }));
+        all.retain(|&(a, b)| a < n32 && b < n32);
+        self.pairs = all;
     }
 }

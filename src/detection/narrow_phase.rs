@@ -63,18 +63,18 @@ fn v64(v: Vec2) -> DVec2 {
     DVec2::new(v.x as f64, v.y as f64)
 }
 
-/// Contacts between bodies `i < j`.
+/// Contacts between bodies `i < j`, body `j` taken at its position plus `image` (a periodic
+/// image; zero for a direct pair).
 pub fn body_body(
     bodies: &Bodies,
     config: &Configuration,
-    i: usize,
-    j: usize,
+    (i, j, image): (usize, usize, DVec2),
     alert: f64,
     out: &mut Vec<DetectedContact>,
 ) {
-    let (xi, xj) = (config.position[i], config.position[j]);
+    let (xi, xj) = (config.position[i], config.position[j] + image);
     let push = |out: &mut Vec<DetectedContact>, feature: u64, point: DVec2, normal: DVec2, gap: f64| {
-        out.push(DetectedContact { i, other: Antagonist::Body(j), feature, point, normal, gap })
+        out.push(DetectedContact { i, other: Antagonist::Body(j), feature, point, normal, gap, image })
     };
     match (bodies.shape[i], bodies.shape[j]) {
         (BodyShape::Disk { radius: ri }, BodyShape::Disk { radius: rj }) => {
@@ -100,7 +100,8 @@ pub fn body_body(
         }
         (BodyShape::Polygon(_), BodyShape::Polygon(_)) => {
             let mut pts = Vec::new();
-            let (a, b) = (world_vertices(bodies, config, i), world_vertices(bodies, config, j));
+            let b: Vec<DVec2> = world_vertices(bodies, config, j).into_iter().map(|v| v + image).collect();
+            let a = world_vertices(bodies, config, i);
             polygon_polygon(&a, &b, alert, &mut pts);
             for c in pts {
                 push(out, c.feature, c.point, c.normal, c.gap);
@@ -127,7 +128,7 @@ pub fn body_wall(
 ) {
     let x = config.position[k];
     let push = |out: &mut Vec<DetectedContact>, feature: u64, point: DVec2, normal: DVec2, gap: f64| {
-        out.push(DetectedContact { i: k, other: Antagonist::Wall(w), feature, point, normal, gap })
+        out.push(DetectedContact { i: k, other: Antagonist::Wall(w), feature, point, normal, gap, image: DVec2::ZERO })
     };
     match (bodies.shape[k], &wall.shape) {
         (BodyShape::Disk { radius }, WallShape::Segment { .. }) => {
@@ -172,7 +173,7 @@ mod tests {
         let sq = vec![DVec2::new(-0.5, -0.5), DVec2::new(0.5, -0.5), DVec2::new(0.5, 0.5), DVec2::new(-0.5, 0.5)];
         bodies.add(&BodySpec::polygon(DVec2::new(100.0, 0.49), sq, 0), 1.0).unwrap();
         let wall = Wall::segment(DVec2::new(90.0, 0.0), DVec2::new(110.0, 0.0), 0);
-        let config = Configuration { position: &bodies.position, angle: &bodies.angle };
+        let config = Configuration { position: &bodies.position, angle: &bodies.angle, periodic: None };
         let mut out = Vec::new();
         body_wall(&bodies, &config, 0, 0, &wall, 0.05, &mut out);
         assert_eq!(out.len(), 2, "{out:?}");

@@ -123,14 +123,15 @@ impl Frame {
             .contacts()
             .iter()
             .map(|c| {
+                let from = b.position[c.contact.i];
                 let (other, to) = match c.contact.other {
-                    Antagonist::Body(j) => (Some(j), b.position[j]),
+                    Antagonist::Body(j) => (Some(j), b.position[j] + c.contact.image),
                     Antagonist::Wall(_) => (None, c.contact.point),
                 };
                 Chain {
                     body: c.contact.i,
                     other,
-                    from: b.position[c.contact.i],
+                    from,
                     to,
                     point: c.contact.point,
                     normal: c.contact.normal,
@@ -212,11 +213,13 @@ impl Frame {
         let mut trace = vec![0.0; self.grains.len()];
         for c in &self.chains {
             // tr(branch ⊗ f) = branch · f, with f the force on the grain.
+            // Branches from the chain's ends: `to` is the other grain's image across a periodic
+            // boundary.
             if let Some(t) = trace.get_mut(c.body) {
-                *t += (c.point - self.grains[c.body].position).dot(c.force);
+                *t += (c.point - c.from).dot(c.force);
             }
             if let Some(j) = c.other.filter(|&j| j < self.grains.len()) {
-                trace[j] += (c.point - self.grains[j].position).dot(-c.force);
+                trace[j] += (c.point - c.to).dot(-c.force);
             }
         }
         self.grains.iter().zip(trace).map(|(g, t)| -0.5 * t / g.area().max(f64::MIN_POSITIVE)).collect()

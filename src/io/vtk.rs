@@ -94,7 +94,8 @@ pub fn write_step(sim: &Simulation, dir: &Path, index: usize) -> Result<[PathBuf
     for c in contacts {
         let a = b.position[c.contact.i];
         let z = match c.contact.other {
-            Antagonist::Body(j) => b.position[j],
+            // Through a periodic boundary: to the other grain's image beside this one.
+            Antagonist::Body(j) => b.position[j] + c.contact.image,
             Antagonist::Wall(_) => c.contact.point,
         };
         conn.extend([(points.len() / 3) as u64, (points.len() / 3 + 1) as u64]);

@@ -12,7 +12,7 @@ use super::grains_csv;
 use super::{deposition, from_toml, generate, Ctx, OutputSettings, Scene, SceneError};
 use crate::solvers::{Ordering, SolverKind, SolverOptions, StopCriterion};
 use crate::stepping::StepSettings;
-use crate::world::{BodySpec, Effect, Effects, Interaction, Materials, PolygonShape, Wall, WallShape, World};
+use crate::world::{BodySpec, Effect, Effects, Interaction, Materials, Periodic, PolygonShape, Wall, WallShape, World};
 
 type P = Exact<f64, 2>;
 
@@ -57,6 +57,7 @@ struct SceneFile {
     time: Spanned<TimeSpec>,
     solver: Option<Spanned<SolverSpec>>,
     detection: Option<Spanned<DetectionSpec>>,
+    periodic: Option<Spanned<PeriodicSpec>>,
     output: Option<Spanned<OutputSpec>>,
     /// Contact law of every pair of materials not listed in `interaction`.
     contact: Option<Spanned<LawSpec>>,
@@ -107,6 +108,13 @@ struct SolverSpec {
 struct DetectionSpec {
     /// Absolute alert distance; default 5 % of the smallest grain radius.
     alert: Option<f64>,
+}
+
+/// A periodic cell along x.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PeriodicSpec {
+    x: [f64; 2],
 }
 
 #[derive(Deserialize)]
@@ -650,6 +658,24 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
     }
     if world.bodies.is_empty() {
         return cx.err(0..0, "body", "the scene has no bodies (add [[body]], [[generate]] or [[grains]])");
+    }
+    if let Some(p) = &file.periodic {
+        let [x0, x1] = p.get_ref().x;
+        let cell = Periodic::new(x0, x1).or_else(|m| cx.err(p.span(), "periodic.x", m))?;
+        // A pair must touch directly or through the boundary, never both.
+        let widest = world.bodies.bounding_radius.iter().fold(0.0f64, |m, r| m.max(2.0 * r));
+        if cell.length() < 4.0 * widest {
+            return cx.err(
+                p.span(),
+                "periodic.x",
+                format!(
+                    "the cell is {:e} m long: at least 4 of its widest bodies ({widest:e} m) must fit",
+                    cell.length()
+                ),
+            );
+        }
+        world.periodic = Some(cell);
+        world.wrap_positions();
     }
 
     // Time, solver, detection, output.

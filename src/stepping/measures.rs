@@ -2,8 +2,9 @@
 //! packing fraction, coordination number and the mean stress tensor of the assembly.
 //!
 //! * **Packing fraction**: the moving grains' area over the area of the region they occupy: the
-//!   box spanned horizontally by the walls (by the grains when there is no wall), from the
-//!   lowest wall point (the lowest grain bottom without walls) to the top of the highest grain.
+//!   box spanned horizontally by the periodic cell, else by the walls (by the grains when there
+//!   is no wall), from the lowest wall point (the lowest grain bottom without walls) to the top
+//!   of the highest grain.
 //! * **Coordination**: active contacts (normal impulse > 0) per grain, over the grains that are
 //!   not rattlers; a rattler has fewer than 2 active contacts. A contact between two grains
 //!   counts for both, a contact with a wall or a fixed body for the grain.
@@ -48,7 +49,8 @@ impl Simulation {
             let mut add = |k: usize, f: DVec2| {
                 if b.inv_mass[k] > 0.0 {
                     active[k] += 1;
-                    let l = b.position[k] - c.contact.point;
+                    let image = if k == c.contact.i { DVec2::ZERO } else { c.contact.image };
+                    let l = b.position[k] + image - c.contact.point;
                     sum[0] += l.x * f.x;
                     sum[1] += l.y * f.y;
                     sum[2] += 0.5 * (l.x * f.y + l.y * f.x);
@@ -95,6 +97,7 @@ impl Simulation {
                 wall_points.iter().map(|p| p.y).fold(f64::INFINITY, f64::min),
             )
         };
+        let (x0, x1) = self.world.periodic.map_or((x0, x1), |p| (p.x0, p.x1));
         ((x1 - x0) * (top - y0)).max(0.0)
     }
 }
@@ -131,14 +134,14 @@ impl Simulation {
         let mut load = WallLoad::default();
         let h = self.settings.h;
         for c in &self.contacts {
-            let on_body = match c.contact.other {
-                _ if c.contact.i == k => c.force(h),
-                Antagonist::Body(j) if j == k => -c.force(h),
+            let (on_body, image) = match c.contact.other {
+                _ if c.contact.i == k => (c.force(h), DVec2::ZERO),
+                Antagonist::Body(j) if j == k => (-c.force(h), c.contact.image),
                 _ => continue,
             };
             load.force[0] += on_body.x;
             load.force[1] += on_body.y;
-            load.moment += (c.contact.point - self.world.bodies.position[k]).perp_dot(on_body);
+            load.moment += (c.contact.point - self.world.bodies.position[k] - image).perp_dot(on_body);
         }
         load
     }

@@ -53,7 +53,7 @@ fn operator(world: &World, contacts: &[DetectedContact], dofs: Dofs) -> Result<M
         .iter()
         .map(|c| {
             let (j, lever_j) = match c.other {
-                Antagonist::Body(j) => (Some(j), (c.point - position[j]).to_array()),
+                Antagonist::Body(j) => (Some(j), (c.point - position[j] - c.image).to_array()),
                 Antagonist::Wall(_) => (None, [0.0; 2]),
             };
             Contact { i: c.i, j, normal: c.normal.to_array(), lever_i: (c.point - position[c.i]).to_array(), lever_j }
@@ -96,7 +96,7 @@ fn detect(
     (reach, wall_reach): (&[f64], &[f64]),
 ) -> Vec<DetectedContact> {
     let b = &world.bodies;
-    let config = Configuration { position: &b.position, angle: &b.angle };
+    let config = Configuration { position: &b.position, angle: &b.angle, periodic: world.periodic };
     let mut detected = detector.detect(b, &config, &world.walls, alert, reach, wall_reach);
     detected.retain(|c| match c.other {
         Antagonist::Body(j) => b.inv_mass[c.i] > 0.0 || b.inv_mass[j] > 0.0,
@@ -365,6 +365,9 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
         before.restore(&mut sim.world);
         return Err(StepError::Diverged { step, message });
     }
+    // 7. Grains that left the periodic cell come back through the other side; the step's
+    // contacts move with their grains, so that points and images stay beside them.
+    let moved = sim.world.wrap_positions();
     let colouring = problem.as_ref().and_then(|p| match &p.w {
         Delassus::MatrixFree(op) => op.colouring_if_built().map(|c| (c, op.moving())),
         Delassus::Sparse(_) => None,
@@ -378,7 +381,16 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
             .map(|(a, c)| {
                 let imp = [impulses[2 * a], impulses[2 * a + 1]];
                 let shifted = [imp[0] + shift.get(2 * a).copied().unwrap_or(0.0), imp[1]];
-                ContactState { contact: *c, impulse: imp, status: status_of(shifted, problem.mu[a]) }
+                let mut contact = *c;
+                if let Some(&dx) = moved.get(c.i) {
+                    let dj = match c.other {
+                        Antagonist::Body(j) => moved[j],
+                        Antagonist::Wall(_) => dx,
+                    };
+                    contact.point.x += dx;
+                    contact.image.x += dx - dj;
+                }
+                ContactState { contact, impulse: imp, status: status_of(shifted, problem.mu[a]) }
             })
             .collect(),
     };

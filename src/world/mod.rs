@@ -5,11 +5,13 @@
 mod bodies;
 mod effects;
 mod materials;
+mod periodic;
 mod walls;
 
 pub use bodies::{Bodies, BodyShape, BodySpec, PolygonShape, SpecShape};
 pub use effects::{Effect, Effects};
 pub use materials::{Interaction, Materials};
+pub use periodic::Periodic;
 pub use walls::{Wall, WallShape};
 
 use glam::DVec2;
@@ -21,11 +23,28 @@ pub struct World {
     pub bodies: Bodies,
     pub walls: Vec<Wall>,
     pub materials: Materials,
+    /// A periodic cell along x, if any.
+    pub periodic: Option<Periodic>,
 }
 
 impl World {
     pub fn new(effects: Effects, materials: Materials) -> Self {
-        Self { bodies: Bodies::new(effects.rotation), walls: Vec::new(), materials, effects }
+        Self { bodies: Bodies::new(effects.rotation), walls: Vec::new(), materials, effects, periodic: None }
+    }
+
+    /// Brings every body back into the periodic cell; returns how far each moved along x (empty
+    /// without a cell).
+    pub fn wrap_positions(&mut self) -> Vec<f64> {
+        let Some(p) = self.periodic else { return Vec::new() };
+        self.bodies
+            .position
+            .iter_mut()
+            .map(|x| {
+                let before = x.x;
+                x.x = p.wrap(x.x);
+                x.x - before
+            })
+            .collect()
     }
 
     /// Kinetic energy `½ Σ m|v|² + ½ Σ I ω²`.
