@@ -21,6 +21,7 @@ message. Solves and steps release the GIL.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import os
 from os import PathLike
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
@@ -295,6 +296,16 @@ class Simulation:
     def remove_body(self, body: int) -> None:
         """Removes a body; the bodies after it move down one index, its contacts go."""
         self._inner.remove_body(body)
+
+    def write_checkpoint(self, path: Path, scene: Optional[Path] = None) -> None:
+        """Writes the state between steps as a checkpoint (JSON); with ``scene``, stamped with
+        that scene file's fingerprint, so that ``moreau run SCENE --restart`` goes on from it."""
+        self._inner.write_checkpoint(os.fspath(path), None if scene is None else os.fspath(scene))
+
+    def restore(self, path: Path, scene: Optional[Path] = None) -> None:
+        """Goes back to a checkpoint (this simulation's, or ``moreau run``'s): the steps after it
+        are those the first run took. With ``scene``, the checkpoint must come from that file."""
+        self._inner.restore(os.fspath(path), None if scene is None else os.fspath(scene))
 
     def keep_problems(self, keep: bool = True) -> None:
         """Keep each step's contact problem for :meth:`last_problem`."""

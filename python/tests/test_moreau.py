@@ -112,6 +112,36 @@ def test_a_scene_stepped_from_python_matches_the_command_line_step_by_step(tmp_p
     np.testing.assert_array_equal(sim.spins, np.array(end["spin"]))
 
 
+def test_a_checkpoint_written_from_python_restarts_bit_for_bit_here_and_on_the_command_line(tmp_path):
+    scene = tmp_path / "pile.toml"
+    scene.write_text(PILE.read_text().replace("[output]\n", "[output]\ncheckpoint_every = 30\n"))
+    straight = moreau.Simulation.from_scene(scene)
+    straight.set_device("cpu", threads=1)
+    for _ in range(20):
+        straight.step()
+    straight.write_checkpoint(tmp_path / "at_20.json", scene=scene)
+    for _ in range(10):
+        straight.step()
+    again = moreau.Simulation.from_scene(scene)
+    again.set_device("cpu", threads=1)
+    again.restore(tmp_path / "at_20.json", scene=scene)
+    assert again.steps_done == 20
+    for _ in range(10):
+        again.step()
+    np.testing.assert_array_equal(again.positions, straight.positions)
+    np.testing.assert_array_equal(again.spins, straight.spins)
+    # The command line goes on from the same file to the same state at step 30.
+    args = [cli(), "run", str(scene), "--restart", str(tmp_path / "at_20.json"), "--steps", "10"]
+    subprocess.run(args + ["--threads", "1", "--device", "cpu", "--quiet", "--out", str(tmp_path)], check=True, capture_output=True)
+    end = json.loads((tmp_path / "checkpoint_000030.json").read_text())
+    np.testing.assert_array_equal(straight.positions, np.array(end["position"]))
+    # A checkpoint of another scene file is refused by name.
+    other = tmp_path / "other.toml"
+    other.write_text(scene.read_text() + "\n# changed\n")
+    with pytest.raises(moreau.MoreauError, match="fingerprint"):
+        again.restore(tmp_path / "at_20.json", scene=other)
+
+
 def test_state_and_contacts_come_back_as_arrays_of_the_documented_shapes():
     sim = moreau.Simulation.from_scene(PILE)
     for _ in range(30):

@@ -26,17 +26,30 @@ pub fn fingerprint(bytes: &[u8]) -> String {
     format!("fnv1a64:{hash:016x}")
 }
 
+/// The name and fingerprint of a scene file, to stamp a checkpoint with.
+pub fn scene_identity(scene: &Path) -> Result<(String, String), CheckpointError> {
+    let bytes =
+        std::fs::read(scene).map_err(|cause| CheckpointError::Io { path: scene.display().to_string(), cause })?;
+    let name = scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    Ok((name, fingerprint(&bytes)))
+}
+
 pub fn write_checkpoint(c: &Checkpoint, path: &Path) -> Result<(), CheckpointError> {
     let json = serde_json::to_string(c).expect("a checkpoint serialises");
     std::fs::write(path, json).map_err(|cause| CheckpointError::Io { path: path.display().to_string(), cause })
 }
 
+/// Reads a checkpoint file, whatever scene it belongs to (a host's world has no scene file).
+pub fn read_checkpoint_file(path: &Path) -> Result<Checkpoint, CheckpointError> {
+    let p = path.display().to_string();
+    let text = std::fs::read(path).map_err(|cause| CheckpointError::Io { path: p.clone(), cause })?;
+    serde_json::from_slice(&text).map_err(|cause| CheckpointError::Format { path: p, cause })
+}
+
 /// Reads a checkpoint and checks that it belongs to the scene file `scene` (by fingerprint).
 pub fn read_checkpoint(path: &Path, scene: &Path) -> Result<Checkpoint, CheckpointError> {
     let p = path.display().to_string();
-    let text = std::fs::read(path).map_err(|cause| CheckpointError::Io { path: p.clone(), cause })?;
-    let c: Checkpoint =
-        serde_json::from_slice(&text).map_err(|cause| CheckpointError::Format { path: p.clone(), cause })?;
+    let c = read_checkpoint_file(path)?;
     let scene_bytes =
         std::fs::read(scene).map_err(|cause| CheckpointError::Io { path: scene.display().to_string(), cause })?;
     let now = fingerprint(&scene_bytes);
