@@ -9,7 +9,8 @@
 //!   the dual projected CG.
 //! * [`parallel`]: how the CPU path uses threads (fixed chunks: the same bits on any thread count).
 //! * [`io`]: Siconos fc2d problem files, JSON reports.
-//! * [`cli`]: the `moreau` command line.
+//! * `cli`: the `moreau` command line (feature `cli`, on by default; a host embedding the library
+//!   turns default features off and builds neither clap, indicatif nor plotters).
 //!
 //! A host steps a scene file, or a world it builds, one Moreau–Jean step at a time:
 //!
@@ -39,6 +40,7 @@
 //! [`Simulation::from_scene`] loads a scene file instead.
 
 pub mod backend;
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod detection;
 pub mod gpu;

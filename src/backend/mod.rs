@@ -24,7 +24,8 @@ use crate::solvers::{
 pub const F32_FLOOR: f64 = 1e-5;
 
 /// What the user asked for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum DeviceChoice {
     /// A hardware GPU when there is one and it can do the solve; else the CPU (says which and why).
     Auto,

@@ -2,7 +2,9 @@
 //! summary.json, VTK time series, PNG pictures).
 
 pub mod checkpoint;
+#[cfg(feature = "plots")]
 pub mod picture;
+#[cfg(feature = "plots")]
 pub mod plots;
 pub mod punch_output;
 pub mod report;

@@ -4,11 +4,9 @@
 
 use std::path::Path;
 
-use anyhow::{anyhow, Context, Result};
-use plotters::prelude::*;
+use anyhow::{Context, Result};
 use vtkio::model::{Attribute, Attributes, CellType};
 
-use super::plots::font_available;
 use super::vtk::grid;
 use crate::structure::{PunchModel, PunchSolution};
 
@@ -74,7 +72,11 @@ pub fn write_contact_csv(model: &PunchModel, sol: &PunchSolution, path: &Path) -
 }
 
 /// The vertical stress σ_yy on the undeformed mesh, both halves, with a colour scale.
+#[cfg(feature = "plots")]
 pub fn write_stress_png(model: &PunchModel, sol: &PunchSolution, path: &Path, width: u32) -> Result<()> {
+    use super::plots::font_available;
+    use anyhow::anyhow;
+    use plotters::prelude::*;
     let mesh = &model.mesh;
     let (w_half, h) = (model.geometry.half_width, model.geometry.height);
     let bar = 120.0;

@@ -165,11 +165,11 @@ pub fn write_step(sim: &Simulation, dir: &Path, index: usize) -> Result<[PathBuf
 pub const STATUS_LEGEND: &str = "status: 0 open, 1 stick, 2 slide r_t=+mu r_n, 3 slide r_t=-mu r_n";
 
 /// A `.vtu` file read back: points (x, y), cells, and its point and cell arrays as f64.
-pub(crate) struct Grid {
+pub struct Grid {
     path: PathBuf,
     pub points: Vec<glam::DVec2>,
-    connectivity: Vec<u64>,
-    offsets: Vec<u64>,
+    pub connectivity: Vec<u64>,
+    pub offsets: Vec<u64>,
     pub types: Vec<CellType>,
     point: Vec<(String, Vec<f64>)>,
     cell: Vec<(String, Vec<f64>)>,
@@ -205,7 +205,7 @@ impl Grid {
 }
 
 /// Reads an unstructured-grid `.vtu` file (one inline piece, as moreau writes them).
-pub(crate) fn read_grid(path: &Path) -> Result<Grid> {
+pub fn read_grid(path: &Path) -> Result<Grid> {
     use vtkio::model::Piece;
     let vtk = Vtk::import(path).map_err(|e| anyhow::anyhow!("{}: not a VTK file moreau reads: {e}", path.display()))?;
     let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {

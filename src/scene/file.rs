@@ -3,7 +3,6 @@
 
 use std::path::Path;
 
-use clap::ValueEnum;
 use glam::DVec2;
 use serde::Deserialize;
 use toml::Spanned;
@@ -684,7 +683,7 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
     let solver_span = file.solver.as_ref().map(|s| s.span()).unwrap_or(0..0);
     let kind = match solver.and_then(|s| s.name.as_deref()) {
         None => SolverKind::Nlgs,
-        Some(n) => SolverKind::from_str(n, true).or_else(|_| {
+        Some(n) => SolverKind::from_name(&n.to_lowercase()).or_else(|_| {
             let known: Vec<_> = SolverKind::ALL.iter().map(|k| k.name()).collect();
             cx.err(solver_span.clone(), "solver.name", format!("unknown solver {n:?} (one of {})", known.join(", ")))
         })?,
@@ -695,7 +694,7 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         options.max_iter = s.max_iter.unwrap_or(options.max_iter);
         options.omega = s.omega.unwrap_or(1.0);
         if let Some(c) = &s.criterion {
-            options.criterion = StopCriterion::from_str(c, true).or_else(|_| {
+            options.criterion = StopCriterion::from_name(c).or_else(|_| {
                 cx.err(
                     solver_span.clone(),
                     "solver.criterion",
@@ -704,7 +703,7 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
             })?;
         }
         if let Some(o) = &s.ordering {
-            options.ordering = Ordering::from_str(o, true)
+            options.ordering = Ordering::from_name(o)
                 .or_else(|_| cx.err(solver_span.clone(), "solver.ordering", format!("unknown ordering {o:?}")))?;
         }
     }

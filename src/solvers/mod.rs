@@ -31,7 +31,8 @@ use crate::problem::ContactProblem;
 use serde::Serialize;
 use std::fmt;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum SolverKind {
     Nlgs,
@@ -89,7 +90,8 @@ impl fmt::Display for SolverKind {
 }
 
 /// Contact ordering of an NLGS sweep.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Ordering {
     Forward,
@@ -100,8 +102,31 @@ pub enum Ordering {
     Shuffled,
 }
 
+impl Ordering {
+    pub const ALL: [Ordering; 4] = [Ordering::Forward, Ordering::Backward, Ordering::Symmetric, Ordering::Shuffled];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Ordering::Forward => "forward",
+            Ordering::Backward => "backward",
+            Ordering::Symmetric => "symmetric",
+            Ordering::Shuffled => "shuffled",
+        }
+    }
+
+    /// The ordering called `name` (any case).
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        let names = Self::ALL.map(Self::name);
+        Self::ALL
+            .into_iter()
+            .find(|o| o.name().eq_ignore_ascii_case(name))
+            .ok_or_else(|| format!("unknown ordering {name:?} (one of: {})", names.join(", ")))
+    }
+}
+
 /// When a solve stops.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum StopCriterion {
     /// The relative natural-map residual |r − proj_cone(r − u)| is at most `tol`.
@@ -117,6 +142,35 @@ pub enum StopCriterion {
     /// (and overlap) while the rest converge.
     // (computed by `problem::residual::velocity_error`)
     Velocity,
+}
+
+impl StopCriterion {
+    pub const ALL: [StopCriterion; 5] = [
+        StopCriterion::Natural,
+        StopCriterion::Quad,
+        StopCriterion::Maxm,
+        StopCriterion::Qm16,
+        StopCriterion::Velocity,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            StopCriterion::Natural => "natural",
+            StopCriterion::Quad => "quad",
+            StopCriterion::Maxm => "maxm",
+            StopCriterion::Qm16 => "qm16",
+            StopCriterion::Velocity => "velocity",
+        }
+    }
+
+    /// The criterion called `name` (any case).
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        let names = Self::ALL.map(Self::name);
+        Self::ALL
+            .into_iter()
+            .find(|c| c.name().eq_ignore_ascii_case(name))
+            .ok_or_else(|| format!("unknown criterion {name:?} (one of: {})", names.join(", ")))
+    }
 }
 
 #[derive(Clone, Debug, Serialize)]
