@@ -175,3 +175,27 @@ fn a_resting_column_has_the_packing_coordination_and_stress_of_statics() {
     assert!((loads[0].force[1] + weight).abs() < 1e-6 * weight && loads[0].force[0].abs() < 1e-9 * weight, "{loads:?}");
     assert!(loads[0].moment.abs() < 1e-9 * weight && loads[1..].iter().all(|l| l.force == [0.0, 0.0]), "{loads:?}");
 }
+
+#[test]
+fn the_next_steps_problem_is_the_one_the_step_then_solves() {
+    let mut sim = Simulation::from_scene(Path::new("scenes/pile.toml")).unwrap();
+    sim.keep_problems(true);
+    for _ in 0..30 {
+        sim.step().unwrap();
+    }
+    let positions = sim.positions().to_vec();
+    let (problem, r0) = sim.next_problem().unwrap().expect("the pile has contacts");
+    assert_eq!(sim.positions(), positions.as_slice(), "assembling moves nothing");
+    assert_eq!(sim.steps_done(), 30);
+    // Solved by the host with the step's solver and warm start: the step's own answer.
+    let options = sim.settings.options.clone();
+    let mine = moreau::solve(&problem, sim.settings.solver, &options, Some(&r0));
+    let report = sim.step().unwrap();
+    let stepped = sim.last_problem().unwrap();
+    let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&problem.q), bits(&stepped.q));
+    assert_eq!(bits(&problem.mu), bits(&stepped.mu));
+    assert_eq!((mine.iterations, mine.error.to_bits()), (report.iterations, report.error.to_bits()));
+    let impulses: Vec<f64> = sim.contacts().iter().flat_map(|c| c.impulse).collect();
+    assert_eq!(bits(&mine.r), bits(&impulses));
+}

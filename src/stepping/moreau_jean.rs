@@ -1,5 +1,6 @@
 //! One Moreau–Jean θ-step (notes §1, LMGC90's `increment`/`comp_free_vlocy`/`comp_dof`), as
-//! the stages [`step`] lists:
+//! [`step`] runs them — [`assemble`] (1–3, also `Simulation::next_problem`), the solve (4),
+//! `apply` (5–7):
 //! 1. detect at the start of the step every pair that can meet within it (alert widened by each
 //!    body's and wall's travel), so each contact keeps the normal it has before any crossing;
 //! 2. free velocity v_free = v + h g;
@@ -10,7 +11,8 @@
 //! 4. solve it warm-started; 5. v⁺ = v_free + M⁻¹ Bᵀ r, X⁺ = X + h((1−θ) v + θ v⁺);
 //! 6. project positions: a contact that the θ-update leaves deeper than it started (a pair
 //!    meeting early in the step at θ < 1) is moved back to its surface along M⁻¹ Bᵀ, velocities
-//!    unchanged (Acary's combined projection, as in Siconos' `MoreauJeanCombinedProjectionOSI`).
+//!    unchanged (Acary's combined projection, as in Siconos' `MoreauJeanCombinedProjectionOSI`);
+//! 7. with a periodic cell, grains that left it come back through the other side.
 
 use std::time::Instant;
 
@@ -252,29 +254,109 @@ fn outran_reach(before: &Snapshot, world: &World, alert: f64, reach: &[f64]) -> 
     })
 }
 
-/// One step: the stages listed at the top of this file; a new state that is not finite or runs
-/// away is undone.
-pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
+/// The contact problem of the coming step (stages 1–3), before any body moves.
+pub(super) struct Assembled {
+    pub detected: Vec<DetectedContact>,
+    /// How far each body and wall may move within the step (detection's widening).
+    reach: (Vec<f64>, Vec<f64>),
+    v_begin: Vec<f64>,
+    v_free: Vec<f64>,
+    /// `None` without contacts.
+    pub problem: Option<ContactProblem>,
+    /// The warm start (cohesion-shifted like the problem), and how many contacts it matched.
+    pub r0: Vec<f64>,
+    warm_started: usize,
+    /// The cohesion shift of the impulses (empty without cohesion).
+    shift: Vec<f64>,
+    detection_seconds: f64,
+}
+
+/// Stages 1–3: detection at the start of the step, free velocities, the local problem with its
+/// warm start. Moves nothing.
+pub(super) fn assemble(sim: &mut Simulation, step: usize) -> Result<Assembled, StepError> {
     let start = Instant::now();
     let (h, theta, alert) = (sim.settings.h, sim.settings.theta, sim.settings.alert);
+    let effects = sim.world.effects;
+    let dofs = Dofs { rotation: effects.rotation, friction: effects.friction };
+    // 1. Detection at the start of the step.
+    let reach = step_reach(&sim.world, h);
+    let detected = detect(&mut sim.detector, &sim.world, alert, (&reach.0, &reach.1));
+    let detection_seconds = start.elapsed().as_secs_f64();
+    // 2. Free velocities.
+    let (v_begin, v_free) = free_velocities(&sim.world, &sim.forces, dofs, h);
+    let mut assembled = Assembled {
+        detected,
+        reach,
+        v_begin,
+        v_free,
+        problem: None,
+        r0: Vec::new(),
+        warm_started: 0,
+        shift: Vec::new(),
+        detection_seconds,
+    };
+    if assembled.detected.is_empty() {
+        return Ok(assembled);
+    }
+    // 3. The local problem, warm-started from last step's impulses (and colours).
+    let world = &sim.world;
+    let op = operator(world, &assembled.detected, dofs).map_err(|message| StepError::Problem { step, message })?;
+    let recalled = sim.warm_start.recall(&assembled.detected, &op.moving());
+    if let Some(kept) = &recalled.colours {
+        op.give_colouring(Colouring::repaired(&op, kept));
+    }
+    let mut r0 = recalled.impulses;
+    let velocities = (assembled.v_begin.as_slice(), assembled.v_free.as_slice());
+    let (problem, shift) = local_problem(world, op, &assembled.detected, velocities, (h, theta), &mut r0)
+        .map_err(|message| StepError::Problem { step, message })?;
+    (assembled.problem, assembled.r0, assembled.shift) = (Some(problem), r0, shift);
+    assembled.warm_started = recalled.matched;
+    Ok(assembled)
+}
+
+/// One step: assemble (stages 1–3), solve (4), apply (5–7); a new state that is not finite or
+/// runs away is undone.
+pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
+    let start = Instant::now();
     let step = sim.step_index + 1;
+    let assembled = assemble(sim, step)?;
+    let solved = match &assembled.problem {
+        None => None,
+        Some(problem) => {
+            // 4. Solve.
+            let solve_start = Instant::now();
+            let solved = sim
+                .backend
+                .solve(problem, sim.settings.solver, &sim.settings.options, Some(&assembled.r0))
+                .map_err(|e| StepError::Device { step, message: e.to_string() })?;
+            Some((solved, solve_start.elapsed().as_secs_f64()))
+        }
+    };
+    let mut report = apply(sim, assembled, solved, step)?;
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok(report)
+}
+
+/// Stages 5–7 with the solve's answer: velocities and positions, the position projection, the
+/// checks of the new state, the warm start and contacts handed to the next step, the periodic
+/// wrap.
+fn apply(
+    sim: &mut Simulation,
+    assembled: Assembled,
+    solved: Option<(crate::solvers::SolveReport, f64)>,
+    step: usize,
+) -> Result<StepReport, StepError> {
+    let (h, theta, alert) = (sim.settings.h, sim.settings.theta, sim.settings.alert);
     let effects = sim.world.effects;
     let dofs = Dofs { rotation: effects.rotation, friction: effects.friction };
     let extent = sim.extent();
     let before = Snapshot::of(&sim.world);
-
-    // 1. Detection at the start of the step.
-    let reach = step_reach(&sim.world, h);
-    let detected = detect(&mut sim.detector, &sim.world, alert, (&reach.0, &reach.1));
-    let mut detection_seconds = start.elapsed().as_secs_f64();
-    // 2. Free velocities.
-    let (v_begin, v_free) = free_velocities(&sim.world, &sim.forces, dofs, h);
-    let nc = detected.len();
+    let Assembled { detected, reach, v_free, problem, shift, mut detection_seconds, .. } = assembled;
     let mut report = StepReport {
         step,
         time: sim.time + h,
-        contacts: nc,
-        warm_started: 0,
+        contacts: detected.len(),
+        warm_started: assembled.warm_started,
         iterations: 0,
         error: 0.0,
         converged: true,
@@ -291,29 +373,10 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
         detection_seconds,
         solve_seconds: 0.0,
     };
-    let mut v_end = v_free.clone();
-    let (mut impulses, mut shift, mut problem) = (Vec::new(), Vec::new(), None);
-    if nc > 0 {
-        // 3. The local problem.
-        let world = &sim.world;
-        let op = operator(world, &detected, dofs).map_err(|message| StepError::Problem { step, message })?;
-        let moving = op.moving();
-        let recalled = sim.warm_start.recall(&detected, &moving);
-        if let Some(kept) = &recalled.colours {
-            op.give_colouring(Colouring::repaired(&op, kept));
-        }
-        let mut r0 = recalled.impulses;
-        report.warm_started = recalled.matched;
-        let local;
-        (local, shift) = local_problem(world, op, &detected, (&v_begin, &v_free), (h, theta), &mut r0)
-            .map_err(|message| StepError::Problem { step, message })?;
-        // 4. Solve.
-        let solve_start = Instant::now();
-        let solved = sim
-            .backend
-            .solve(&local, sim.settings.solver, &sim.settings.options, Some(&r0))
-            .map_err(|e| StepError::Device { step, message: e.to_string() })?;
-        report.solve_seconds = solve_start.elapsed().as_secs_f64();
+    let mut v_end = v_free;
+    let mut impulses = Vec::new();
+    if let (Some(local), Some((solved, seconds))) = (&problem, solved) {
+        report.solve_seconds = seconds;
         report.iterations = solved.iterations;
         report.error = solved.error;
         report.converged = solved.converged;
@@ -334,7 +397,6 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
         for (v, d) in v_end.iter_mut().zip(op.body_velocities(&impulses)) {
             *v += d;
         }
-        problem = Some(local);
     }
 
     // 5. Update, then 6. projection of what the θ-update pushed in: on the start's contacts
@@ -403,6 +465,5 @@ pub(super) fn step(sim: &mut Simulation) -> Result<StepReport, StepError> {
     report.detection_seconds = detection_seconds;
     report.kinetic_energy = sim.world.kinetic_energy();
     report.potential_energy = sim.world.potential_energy();
-    report.seconds = start.elapsed().as_secs_f64();
     Ok(report)
 }

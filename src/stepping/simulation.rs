@@ -429,6 +429,16 @@ impl Simulation {
         self.keep_problem = keep;
     }
 
+    /// The contact problem the next step will solve and its warm start, without stepping
+    /// (detection, free velocities, the local problem: the step's first stages; nothing moves):
+    /// for a host that studies or solves it itself. `None` when no pair is in reach. With
+    /// cohesion the problem is in shifted impulses `r + c e_n`, as the step solves it.
+    pub fn next_problem(&mut self) -> Result<Option<(ContactProblem, Vec<f64>)>, StepError> {
+        self.check()?;
+        let assembled = super::moreau_jean::assemble(self, self.step_index + 1)?;
+        Ok(assembled.problem.map(|p| (p, assembled.r0)))
+    }
+
     /// The contact problem of the last step, when [`Self::keep_problems`] is on.
     pub fn last_problem(&self) -> Option<&ContactProblem> {
         self.last_problem.as_ref()
