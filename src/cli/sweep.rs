@@ -464,11 +464,9 @@ fn first_step_problem(path: &Path, mu: f64) -> Result<ContactProblem> {
             s.world.materials.set(a, b, law);
         }
     }
-    s.settings.options.max_iter = 1; // only the problem is wanted
     let mut sim = Simulation::new(s.world, s.settings)?;
-    sim.keep_problems(true);
-    sim.step()?;
-    sim.last_problem().cloned().ok_or_else(|| anyhow::anyhow!("{}: the first step has no contact", path.display()))
+    let first = sim.next_problem()?; // assembled, not solved
+    first.map(|(p, _)| p).ok_or_else(|| anyhow::anyhow!("{}: the first step has no contact", path.display()))
 }
 
 pub fn friction_command(a: FrictionArgs) -> Result<()> {
