@@ -236,10 +236,6 @@ impl Frame {
             let hi = points.fold(DVec2::splat(f64::NEG_INFINITY), |a, &p| a.max(p));
             return lo.cmple(hi).all().then_some((lo, hi));
         }
-        let quantile = |mut values: Vec<f64>, q: f64| {
-            values.sort_by(f64::total_cmp);
-            values[((values.len() - 1) as f64 * q).round() as usize]
-        };
         let median_radius = quantile(self.grains.iter().map(|g| g.radius).collect(), 0.5);
         let diameter = 2.0 * median_radius;
         let mut band = [(0.0, 0.0); 2];
@@ -261,6 +257,12 @@ impl Frame {
         let pad = diameter.max(0.01 * (hi - lo).max_element());
         Some((lo - pad, hi + pad))
     }
+}
+
+/// The value below which a share `q` of `values` lie (the nearest rank; `values` not empty).
+fn quantile(mut values: Vec<f64>, q: f64) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values[((values.len() - 1) as f64 * q).round() as usize]
 }
 
 /// The time of `file` in a `.pvd` series, if the series names it.
@@ -399,13 +401,13 @@ impl ColourScale {
             Colouring::Pressure => frames.iter().flat_map(|f| f.pressures()).collect(),
         };
         values.retain(|v| v.is_finite());
-        values.sort_by(f64::total_cmp);
+        let largest = values.iter().copied().reduce(f64::max).unwrap_or(0.0);
         let (top, clipped) = match colouring {
             Colouring::Pressure if !values.is_empty() => {
-                let p99 = values[((values.len() - 1) as f64 * 0.99).round() as usize];
-                (p99, p99 < values[values.len() - 1])
+                let p99 = quantile(values, 0.99);
+                (p99, p99 < largest)
             }
-            _ => (values.last().copied().unwrap_or(0.0), false),
+            _ => (largest, false),
         };
         let mut tags: Vec<u32> = frames.iter().flat_map(|f| f.grains.iter().map(|g| g.tag)).collect();
         tags.sort_unstable();

@@ -116,11 +116,7 @@ impl Ordering {
 
     /// The ordering called `name` (any case).
     pub fn from_name(name: &str) -> Result<Self, String> {
-        let names = Self::ALL.map(Self::name);
-        Self::ALL
-            .into_iter()
-            .find(|o| o.name().eq_ignore_ascii_case(name))
-            .ok_or_else(|| format!("unknown ordering {name:?} (one of: {})", names.join(", ")))
+        by_name(&Self::ALL, Self::name, name, "ordering")
     }
 }
 
@@ -165,12 +161,16 @@ impl StopCriterion {
 
     /// The criterion called `name` (any case).
     pub fn from_name(name: &str) -> Result<Self, String> {
-        let names = Self::ALL.map(Self::name);
-        Self::ALL
-            .into_iter()
-            .find(|c| c.name().eq_ignore_ascii_case(name))
-            .ok_or_else(|| format!("unknown criterion {name:?} (one of: {})", names.join(", ")))
+        by_name(&Self::ALL, Self::name, name, "criterion")
     }
+}
+
+/// The one of `all` whose name is `wanted` (any case); the error lists the names.
+fn by_name<T: Copy>(all: &[T], name: fn(T) -> &'static str, wanted: &str, what: &str) -> Result<T, String> {
+    all.iter().copied().find(|&x| name(x).eq_ignore_ascii_case(wanted)).ok_or_else(|| {
+        let names: Vec<&str> = all.iter().map(|&x| name(x)).collect();
+        format!("unknown {what} {wanted:?} (one of: {})", names.join(", "))
+    })
 }
 
 #[derive(Clone, Debug, Serialize)]

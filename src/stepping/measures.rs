@@ -45,20 +45,12 @@ impl Simulation {
         let mut sum = [0.0; 3]; // ℓx fx, ℓy fy, (ℓx fy + ℓy fx) / 2
         let h = self.settings.h;
         for c in self.contacts.iter().filter(|c| c.impulse[0] > 0.0) {
-            let force = c.force(h); // on body i
-            let mut add = |k: usize, f: DVec2| {
-                if b.inv_mass[k] > 0.0 {
-                    active[k] += 1;
-                    let image = if k == c.contact.i { DVec2::ZERO } else { c.contact.image };
-                    let l = b.position[k] + image - c.contact.point;
-                    sum[0] += l.x * f.x;
-                    sum[1] += l.y * f.y;
-                    sum[2] += 0.5 * (l.x * f.y + l.y * f.x);
-                }
-            };
-            add(c.contact.i, force);
-            if let Antagonist::Body(j) = c.contact.other {
-                add(j, -force);
+            for (k, f, image) in c.loaded_bodies(h).filter(|&(k, ..)| b.inv_mass[k] > 0.0) {
+                active[k] += 1;
+                let l = b.position[k] + image - c.contact.point;
+                sum[0] += l.x * f.x;
+                sum[1] += l.y * f.y;
+                sum[2] += 0.5 * (l.x * f.y + l.y * f.x);
             }
         }
         let carrying: Vec<usize> = grains.iter().map(|&k| active[k]).filter(|&a| a >= 2).collect();
@@ -134,14 +126,11 @@ impl Simulation {
         let mut load = WallLoad::default();
         let h = self.settings.h;
         for c in &self.contacts {
-            let (on_body, image) = match c.contact.other {
-                _ if c.contact.i == k => (c.force(h), DVec2::ZERO),
-                Antagonist::Body(j) if j == k => (-c.force(h), c.contact.image),
-                _ => continue,
-            };
-            load.force[0] += on_body.x;
-            load.force[1] += on_body.y;
-            load.moment += (c.contact.point - self.world.bodies.position[k] - image).perp_dot(on_body);
+            for (_, on_body, image) in c.loaded_bodies(h).filter(|&(j, ..)| j == k) {
+                load.force[0] += on_body.x;
+                load.force[1] += on_body.y;
+                load.moment += (c.contact.point - self.world.bodies.position[k] - image).perp_dot(on_body);
+            }
         }
         load
     }

@@ -7,7 +7,7 @@ use thiserror::Error;
 
 use super::WarmStart;
 use crate::backend::{Backend, DeviceChoice};
-use crate::detection::{DetectedContact, Detector};
+use crate::detection::{Antagonist, DetectedContact, Detector};
 use crate::problem::cone::ContactStatus;
 use crate::problem::ContactProblem;
 use crate::solvers::{SolverKind, SolverOptions, StopReason};
@@ -74,6 +74,18 @@ impl ContactState {
     pub fn force(&self, h: f64) -> DVec2 {
         let n = self.contact.normal;
         (self.impulse[0] * n + self.impulse[1] * n.perp()) / h
+    }
+
+    /// The bodies the contact pushes on: (body, the step's mean force on it, the shift its
+    /// position takes in this contact — a periodic image), body `i` first, the other only when
+    /// it is a body.
+    pub fn loaded_bodies(&self, h: f64) -> impl Iterator<Item = (usize, DVec2, DVec2)> {
+        let force = self.force(h);
+        let other = match self.contact.other {
+            Antagonist::Body(j) => Some((j, -force, self.contact.image)),
+            Antagonist::Wall(_) => None,
+        };
+        std::iter::once((self.contact.i, force, DVec2::ZERO)).chain(other)
     }
 }
 
