@@ -103,7 +103,7 @@ fn bad_scenes_get_errors_naming_line_and_field() {
     assert_scene_error(
         &GOOD.replace("\"friction\"]", "\"friction\", \"rolling_resistance\"]"),
         2,
-        &["rolling_resistance", "not implemented"],
+        &["rolling_resistance", "needs the effect `rotation`"],
     );
     assert_scene_error(&GOOD.replace("\"friction\"]", "\"frction\"]"), 2, &["frction"]);
     assert_scene_error(

@@ -183,7 +183,8 @@ impl World {
     /// `materials`: (name, density) pairs; one contact law for every pair of materials, which
     /// `set_interaction` changes per pair. An effect is on when its parameter is given.
     #[new]
-    #[pyo3(signature = (materials, friction = 0.0, restitution = 0.0, cohesion = 0.0, gravity = None, rotation = false, moving_walls = false))]
+    #[pyo3(signature = (materials, friction = 0.0, restitution = 0.0, cohesion = 0.0, gravity = None, rotation = false, moving_walls = false, rolling_resistance = 0.0))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         materials: Vec<(String, f64)>,
         friction: f64,
@@ -192,6 +193,7 @@ impl World {
         gravity: Option<(f64, f64)>,
         rotation: bool,
         moving_walls: bool,
+        rolling_resistance: f64,
     ) -> PyResult<Self> {
         if materials.is_empty() {
             return Err(error("a world needs at least one material"));
@@ -201,7 +203,7 @@ impl World {
                 return Err(error(format!("material {name:?}: density {density} must be finite and > 0")));
             }
         }
-        let law = Interaction { friction, restitution, cohesion };
+        let law = Interaction { friction, restitution, cohesion, rolling_resistance };
         check_law(&law)?;
         let effects = Effects {
             gravity: gravity.map(vec2),
@@ -210,21 +212,31 @@ impl World {
             restitution: restitution > 0.0,
             cohesion: cohesion > 0.0,
             moving_walls,
+            rolling_resistance: rolling_resistance > 0.0,
         };
         let (names, density) = materials.into_iter().unzip();
         Ok(Self(moreau::World::new(effects, Materials::new(names, density, law))))
     }
 
     /// The contact law between materials `a` and `b`.
-    #[pyo3(signature = (a, b, friction = 0.0, restitution = 0.0, cohesion = 0.0))]
-    fn set_interaction(&mut self, a: &str, b: &str, friction: f64, restitution: f64, cohesion: f64) -> PyResult<()> {
-        let law = Interaction { friction, restitution, cohesion };
+    #[pyo3(signature = (a, b, friction = 0.0, restitution = 0.0, cohesion = 0.0, rolling_resistance = 0.0))]
+    fn set_interaction(
+        &mut self,
+        a: &str,
+        b: &str,
+        friction: f64,
+        restitution: f64,
+        cohesion: f64,
+        rolling_resistance: f64,
+    ) -> PyResult<()> {
+        let law = Interaction { friction, restitution, cohesion, rolling_resistance };
         check_law(&law)?;
         let (a, b) = (material_named(&self.0, a)?, material_named(&self.0, b)?);
         let e = &mut self.0.effects;
         e.friction |= friction > 0.0;
         e.restitution |= restitution > 0.0;
         e.cohesion |= cohesion > 0.0;
+        e.rolling_resistance |= rolling_resistance > 0.0;
         self.0.materials.set(a, b, law);
         Ok(())
     }
@@ -292,7 +304,13 @@ impl World {
 }
 
 fn check_law(law: &Interaction) -> PyResult<()> {
-    for (name, value) in [("friction", law.friction), ("restitution", law.restitution), ("cohesion", law.cohesion)] {
+    let values = [
+        ("friction", law.friction),
+        ("restitution", law.restitution),
+        ("cohesion", law.cohesion),
+        ("rolling_resistance", law.rolling_resistance),
+    ];
+    for (name, value) in values {
         if !(value.is_finite() && value >= 0.0) {
             return Err(error(format!("{name} {value} must be finite and >= 0")));
         }

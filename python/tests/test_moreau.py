@@ -175,6 +175,18 @@ def test_a_world_built_from_python_lets_a_grain_land_and_rest():
     assert moreau.solve(problem, tol=1e-10).error <= 1e-10
 
 
+def test_rolling_resistance_from_python_stops_a_rolling_disk_after_three_v0_squared_over_four_eta_g():
+    eta, v0, radius = 0.1, 1.0, 0.05
+    world = moreau.World([("steel", 7800.0)], friction=0.5, gravity=(0.0, -9.81), rotation=True, rolling_resistance=eta)
+    world.add_wall((-1.0, 0.0), (5.0, 0.0), "steel")
+    disk = world.add_disk((0.0, radius), radius, "steel", velocity=(v0, 0.0), spin=-v0 / radius)
+    sim = moreau.Simulation(world, h=1e-3, tol=1e-10)
+    for _ in range(1800):  # it stops after 1.53 s
+        assert sim.step()["converged"]
+    assert sim.positions[disk, 0] == pytest.approx(3.0 * v0**2 / (4.0 * eta * 9.81), rel=1e-3)
+    assert np.linalg.norm(sim.velocities[disk]) < 1e-9
+
+
 def test_a_body_removed_from_python_leaves_the_others_renumbered():
     sim = moreau.Simulation.from_scene(PILE)
     for _ in range(10):

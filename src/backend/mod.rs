@@ -57,6 +57,9 @@ pub enum Device {
 pub enum BackendError {
     #[error("--device gpu: {0}")]
     Refused(String),
+    /// The problem needs what the solver or criterion does not offer (on any device).
+    #[error("{0}")]
+    Unsupported(String),
     #[error(transparent)]
     Gpu(#[from] GpuError),
 }
@@ -73,6 +76,10 @@ impl Default for Backend {
         Self::cpu()
     }
 }
+
+/// Why a problem with rolling unknowns is solved on the CPU.
+pub const ROLLING_ON_CPU: &str =
+    "rolling resistance is solved on the CPU only: the GPU kernels know 2 unknowns per contact";
 
 /// Why the GPU path cannot run this solve, if it cannot.
 pub fn gpu_refusal(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
@@ -100,6 +107,11 @@ impl Backend {
         Self { device: Device::Cpu, reason: "asked for".into() }
     }
 
+    /// The CPU, chosen for `reason` (said by [`Self::describe`]).
+    pub fn cpu_because(reason: impl Into<String>) -> Self {
+        Self { device: Device::Cpu, reason: reason.into() }
+    }
+
     /// This GPU context.
     pub fn gpu(ctx: GpuContext) -> Self {
         Self { device: Device::Gpu(Arc::new(ctx)), reason: "asked for".into() }
@@ -109,6 +121,22 @@ impl Backend {
     /// adapter, else the software one) or an error naming what the GPU path lacks; `auto`, a
     /// hardware GPU that can do the solve to a tolerance f32 reaches, else the CPU.
     pub fn choose(choice: DeviceChoice, kind: SolverKind, opts: &SolverOptions) -> Result<Self, BackendError> {
+        Self::choose_for(choice, kind, opts, false)
+    }
+
+    /// [`Self::choose`] for problems that may carry rolling unknowns (`rolling`), which only the
+    /// CPU solves: `auto` then takes the CPU and says why, `gpu` is refused.
+    pub fn choose_for(
+        choice: DeviceChoice,
+        kind: SolverKind,
+        opts: &SolverOptions,
+        rolling: bool,
+    ) -> Result<Self, BackendError> {
+        match choice {
+            DeviceChoice::Auto if rolling => return Ok(Self::cpu_because(ROLLING_ON_CPU)),
+            DeviceChoice::Gpu if rolling => return Err(BackendError::Refused(ROLLING_ON_CPU.into())),
+            _ => {}
+        }
         let cpu = |reason: String| Ok(Self { device: Device::Cpu, reason });
         match choice {
             DeviceChoice::Cpu => Ok(Self::cpu()),
@@ -198,8 +226,12 @@ impl Backend {
         opts: &SolverOptions,
         r0: Option<&[f64]>,
     ) -> Result<SolveReport, BackendError> {
+        if let Some(why) = solvers::refusal(problem, kind, opts) {
+            return Err(BackendError::Unsupported(why));
+        }
         match &self.device {
             Device::Cpu => Ok(solvers::solve(problem, kind, opts, r0)),
+            Device::Gpu(_) if problem.has_rolling() => Err(BackendError::Refused(ROLLING_ON_CPU.into())),
             Device::Gpu(ctx) => {
                 self.check(kind, opts)?;
                 let before = Traffic::now();
@@ -228,9 +260,12 @@ pub fn solve_by_name(
     opts.validate().map_err(|e| e.to_string())?;
     let choice = DeviceChoice::from_name(device)?;
     if let Some(r0) = r0 {
-        let n = 2 * problem.n_contacts();
+        let n = problem.unknowns();
         if r0.len() != n {
-            return Err(format!("r0 has {} entries, expected {n} (2 per contact)", r0.len()));
+            return Err(format!(
+                "r0 has {} entries, expected {n} (2 per contact, 3 with rolling resistance)",
+                r0.len()
+            ));
         }
     }
     crate::parallel::with_threads(threads, || {

@@ -349,7 +349,17 @@ fn check_command(path: &std::path::Path, strict: bool) -> Result<()> {
 
 /// Picks the device for solves of `solver` with `opts` (the backend decides) and says which.
 pub(crate) fn choose_backend(choice: DeviceChoice, solver: SolverKind, opts: &SolverOptions) -> Result<Backend> {
-    let backend = Backend::choose(choice, solver, opts)?;
+    choose_backend_for(choice, solver, opts, false)
+}
+
+/// [`choose_backend`] for a scene whose problems may carry rolling unknowns (CPU only).
+pub(crate) fn choose_backend_for(
+    choice: DeviceChoice,
+    solver: SolverKind,
+    opts: &SolverOptions,
+    rolling: bool,
+) -> Result<Backend> {
+    let backend = Backend::choose_for(choice, solver, opts, rolling)?;
     eprintln!("device: {}", backend.describe());
     Ok(backend)
 }

@@ -7,7 +7,7 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::punch::{run_punch, PunchOverrides};
-use super::{choose_backend, set_threads, DeviceChoice};
+use super::{choose_backend_for, set_threads, DeviceChoice};
 use crate::io::checkpoint::{fingerprint, read_checkpoint, write_checkpoint};
 use crate::io::run_output::{RunOutput, RunSummary};
 use crate::io::siconos::{write_fc2d, Storage};
@@ -116,6 +116,9 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         (None, false) => 0,
     };
     let first = start + 1;
+    if !a.dump_problem.is_empty() && scene.world.effects.rolling_resistance {
+        bail!("--dump-problem: the scene has rolling resistance (3 unknowns per contact); the fc2d format holds 2");
+    }
     if let Some(&late) = a.dump_problem.iter().find(|&&k| k < first || k > last) {
         bail!("--dump-problem {late}: the run has steps {first} to {last}");
     }
@@ -128,7 +131,8 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         }
         (None, k) => k.unwrap_or(last),
     };
-    let backend = choose_backend(a.device, scene.settings.solver, &scene.settings.options)?;
+    let rolling = scene.world.effects.rolling_resistance;
+    let backend = choose_backend_for(a.device, scene.settings.solver, &scene.settings.options, rolling)?;
     let default_dir = match start {
         0 => scene.name.clone(),
         k => format!("{}_from_{k}", scene.name),

@@ -230,8 +230,13 @@ pub enum Storage {
     Sparse,
 }
 
-/// Writes a problem (assembling `W` if it is matrix-free), full f64 precision.
+/// Writes a problem (assembling `W` if it is matrix-free), full f64 precision. A problem with
+/// rolling unknowns is refused: the format has 2 unknowns per contact.
 pub fn write_fc2d(problem: &ContactProblem, storage: Storage, path: &Path) -> Result<(), FileError> {
+    if problem.has_rolling() {
+        let msg = "a problem with rolling resistance has 3 unknowns per contact; the fc2d format holds 2".into();
+        return Err(FileError::Invalid { path: path.display().to_string(), msg });
+    }
     let text = format_fc2d(problem, storage);
     std::fs::write(path, text).map_err(|cause| FileError::Io { path: path.display().to_string(), cause })
 }

@@ -155,6 +155,10 @@ pub struct MatrixFree {
     colouring: OnceLock<Colouring>,
     /// The diagonal blocks `W_αα`, built once (a solve and its stopping test both read them).
     diag: OnceLock<Vec<Mat2>>,
+    /// Each contact's rolling radius when rolling resistance is on (empty when off): the
+    /// rolling row `u_r = R (ω_i − ω_j)` follows the (n, t) rows, its impulse `r_r` is a torque
+    /// impulse `R r_r` on i and `−R r_r` on j.
+    rolling_radius: Vec<f64>,
 }
 
 /// The contacts of each body in increasing contact order, with the side the body is on: a
@@ -247,7 +251,77 @@ impl MatrixFree {
             incidence: OnceLock::new(),
             colouring: OnceLock::new(),
             diag: OnceLock::new(),
+            rolling_radius: Vec::new(),
         })
+    }
+
+    /// The operator with a rolling row per contact (`radius[a]` its rolling radius): unknowns
+    /// become `[r_n0, r_t0, …, r_n(m−1), r_t(m−1), r_r0, …, r_r(m−1)]`. Needs rotation.
+    pub fn with_rolling(mut self, radius: Vec<f64>) -> Result<Self, String> {
+        if !self.dofs.rotation {
+            return Err("rolling resistance needs the effect `rotation`".into());
+        }
+        if radius.len() != self.rows.len() {
+            return Err(format!("{} rolling radii for {} contacts", radius.len(), self.rows.len()));
+        }
+        if let Some(a) = radius.iter().position(|r| !(r.is_finite() && *r > 0.0)) {
+            return Err(format!("contact {a}: rolling radius {} must be finite and > 0", radius[a]));
+        }
+        self.rolling_radius = radius;
+        Ok(self)
+    }
+
+    /// The same operator without rolling rows.
+    pub fn without_rolling(&self) -> Self {
+        Self { rolling_radius: Vec::new(), ..self.clone() }
+    }
+
+    /// Whether each contact has a rolling row.
+    pub fn has_rolling(&self) -> bool {
+        !self.rolling_radius.is_empty()
+    }
+
+    /// Unknowns of a problem on this operator: 2 per contact, 3 with rolling rows.
+    pub fn unknowns(&self) -> usize {
+        if self.has_rolling() {
+            3 * self.rows.len()
+        } else {
+            2 * self.rows.len()
+        }
+    }
+
+    /// `v += M⁻¹ B_rᵀ r_r`: contact `a`'s rolling impulse turned into spins (fixed bodies untouched).
+    #[inline]
+    pub(crate) fn scatter_rolling<V: Velocities + ?Sized>(&self, a: usize, rr: f64, v: &mut V) {
+        let c = &self.rows[a];
+        let torque = self.rolling_radius[a] * rr;
+        let b = self.bodies[c.i];
+        if b != Body::fixed() {
+            v.add(3 * c.i + 2, b.inv_inertia * torque);
+        }
+        if c.j != NO_BODY && self.bodies[c.j] != Body::fixed() {
+            v.add(3 * c.j + 2, -(self.bodies[c.j].inv_inertia * torque));
+        }
+    }
+
+    /// `B_r v`: contact `a`'s rolling velocity `R (ω_i − ω_j)`.
+    #[inline]
+    pub(crate) fn gather_rolling<V: Velocities + ?Sized>(&self, a: usize, v: &V) -> f64 {
+        let c = &self.rows[a];
+        let spin_j = if c.j != NO_BODY { v.get(3 * c.j + 2) } else { 0.0 };
+        self.rolling_radius[a] * (v.get(3 * c.i + 2) - spin_j)
+    }
+
+    /// Contact `a`'s rolling radius (with rolling rows).
+    pub fn rolling_radius(&self, a: usize) -> f64 {
+        self.rolling_radius[a]
+    }
+
+    /// `W_rr` of contact `a`: `R² (1/I_i + 1/I_j)`.
+    pub fn rolling_diag(&self, a: usize) -> f64 {
+        let c = &self.rows[a];
+        let inv_j = if c.j != NO_BODY { self.bodies[c.j].inv_inertia } else { 0.0 };
+        self.rolling_radius[a].powi(2) * (self.bodies[c.i].inv_inertia + inv_j)
     }
 
     pub fn n_contacts(&self) -> usize {
@@ -267,6 +341,7 @@ impl MatrixFree {
         self.bodies.capacity() * std::mem::size_of::<Body>()
             + self.rows.capacity() * std::mem::size_of::<ContactRows>()
             + self.levers.capacity() * std::mem::size_of::<Levers>()
+            + self.rolling_radius.capacity() * std::mem::size_of::<f64>()
     }
 
     /// The same operator with its contacts in `order` (contact `k` of the result is `order[k]`).
@@ -279,6 +354,7 @@ impl MatrixFree {
             incidence: OnceLock::new(),
             colouring: OnceLock::new(),
             diag: OnceLock::new(),
+            rolling_radius: order.iter().filter_map(|&a| self.rolling_radius.get(a).copied()).collect(),
         }
     }
 
@@ -325,6 +401,7 @@ impl MatrixFree {
             return;
         }
         let inc = self.incidence();
+        let nc = self.rows.len();
         for &(a, j_side) in &inc.list[inc.start[k]..inc.start[k + 1]] {
             let (rn, rt) = (r[2 * a], r[2 * a + 1]);
             let n = self.rows[a].n;
@@ -345,6 +422,10 @@ impl MatrixFree {
                     (true, false) => rn * g[2],
                 };
                 v[2] += sign * (b.inv_inertia * torque);
+                if self.has_rolling() {
+                    // The order of `scatter_rolling` after `scatter_one`: the same bits.
+                    v[2] += sign * (b.inv_inertia * (self.rolling_radius[a] * r[2 * nc + a]));
+                }
             }
         }
     }
@@ -423,15 +504,23 @@ impl MatrixFree {
                 }
             });
         } else {
-            for a in 0..self.rows.len() {
+            let nc = self.rows.len();
+            for a in 0..nc {
                 self.scatter_one(a, r[2 * a], r[2 * a + 1], v.as_mut_slice());
+                if self.has_rolling() {
+                    self.scatter_rolling(a, r[2 * nc + a], v.as_mut_slice());
+                }
             }
         }
         v
     }
 
-    /// `out = B v` (contacts on threads for large problems).
+    /// `out = B v` (contacts on threads for large problems); rolling rows after the (n, t) rows.
     pub fn contact_velocities(&self, v: &[f64], out: &mut [f64]) {
+        let (out, rolling) = out.split_at_mut(2 * self.rows.len());
+        for (a, u) in rolling.iter_mut().enumerate() {
+            *u = self.gather_rolling(a, v);
+        }
         let gather = |first: usize, out: &mut [f64]| {
             for (k, o) in out.chunks_mut(2).enumerate() {
                 let u = self.gather_one(first + k, v);

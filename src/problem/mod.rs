@@ -1,6 +1,8 @@
 //! The one-step 2D frictional contact problem `u = W r + q` with a Coulomb cone per contact.
 //!
-//! Vectors are interleaved per contact, normal first: `r = [r_n0, r_t0, r_n1, r_t1, …]`.
+//! Vectors are interleaved per contact, normal first: `r = [r_n0, r_t0, r_n1, r_t1, …]`. With
+//! rolling resistance (matrix-free only) each contact's rolling unknown follows them all:
+//! `[…, r_n(m−1), r_t(m−1), r_r0, …, r_r(m−1)]`, bounded by `|r_r| ≤ η r_n`.
 //! `W` is a [`Delassus`] operator: matrix-free (`B M⁻¹ Bᵀ` through bodies and contacts) or an
 //! explicit 2×2-block sparse matrix read from a file. Solvers only see the operator interface.
 
@@ -23,8 +25,10 @@ pub type Mat2 = [f64; 4];
 
 #[derive(Debug, Error, PartialEq)]
 pub enum ProblemError {
-    #[error("q has {got} entries, expected {expected} (2 per contact)")]
+    #[error("q has {got} entries, expected {expected} (2 per contact, 3 with rolling resistance)")]
     QSize { got: usize, expected: usize },
+    #[error("rolling resistance: {0}")]
+    Rolling(String),
     #[error("mu has {got} entries, expected {expected} (1 per contact)")]
     MuSize { got: usize, expected: usize },
     #[error("q[{0}] is not finite")]
@@ -41,14 +45,39 @@ pub struct ContactProblem {
     pub w: Delassus,
     pub q: Vec<f64>,
     pub mu: Vec<f64>,
+    /// The rolling-resistance coefficient η of each contact (`|r_r| ≤ η r_n`); empty when the
+    /// operator has no rolling rows.
+    pub rolling: Vec<f64>,
 }
 
 impl ContactProblem {
     /// Builds a problem after checking sizes and values; never accepts NaN or negative μ.
     pub fn new(w: Delassus, q: Vec<f64>, mu: Vec<f64>) -> Result<Self, ProblemError> {
+        Self::with_rolling(w, q, mu, Vec::new())
+    }
+
+    /// [`Self::new`] with a rolling-resistance coefficient per contact (`rolling`, empty when
+    /// off), for an operator built with rolling rows ([`MatrixFree::with_rolling`]).
+    pub fn with_rolling(w: Delassus, q: Vec<f64>, mu: Vec<f64>, rolling: Vec<f64>) -> Result<Self, ProblemError> {
         let nc = w.n_contacts();
-        if q.len() != 2 * nc {
-            return Err(ProblemError::QSize { got: q.len(), expected: 2 * nc });
+        let has_rows = matches!(&w, Delassus::MatrixFree(op) if op.has_rolling());
+        if has_rows == rolling.is_empty() {
+            let why = if has_rows {
+                "the operator has rolling rows but no coefficient is given"
+            } else {
+                "coefficients given for an operator without rolling rows"
+            };
+            return Err(ProblemError::Rolling(why.into()));
+        }
+        if !rolling.is_empty() && rolling.len() != nc {
+            return Err(ProblemError::Rolling(format!("{} coefficients for {nc} contacts", rolling.len())));
+        }
+        if let Some(a) = rolling.iter().position(|e| !(e.is_finite() && *e >= 0.0)) {
+            return Err(ProblemError::Rolling(format!("contact {a}: η = {} must be finite and >= 0", rolling[a])));
+        }
+        let unknowns = if has_rows { 3 * nc } else { 2 * nc };
+        if q.len() != unknowns {
+            return Err(ProblemError::QSize { got: q.len(), expected: unknowns });
         }
         if mu.len() != nc {
             return Err(ProblemError::MuSize { got: mu.len(), expected: nc });
@@ -60,11 +89,25 @@ impl ContactProblem {
             return Err(ProblemError::BadMu(i, mu[i]));
         }
         w.validate().map_err(ProblemError::Operator)?;
-        Ok(Self { w, q, mu })
+        Ok(Self { w, q, mu, rolling })
     }
 
     pub fn n_contacts(&self) -> usize {
         self.mu.len()
+    }
+
+    /// Whether each contact carries a rolling unknown after the (n, t) pairs.
+    pub fn has_rolling(&self) -> bool {
+        !self.rolling.is_empty()
+    }
+
+    /// Length of `r`, `u` and `q`: 2 per contact, 3 with rolling resistance.
+    pub fn unknowns(&self) -> usize {
+        if self.has_rolling() {
+            3 * self.n_contacts()
+        } else {
+            2 * self.n_contacts()
+        }
     }
 
     /// `u = W r + q` (one operator product).

@@ -132,6 +132,7 @@ struct LawSpec {
     friction: Option<f64>,
     restitution: Option<f64>,
     cohesion: Option<f64>,
+    rolling_resistance: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -148,6 +149,7 @@ struct PairSpec {
     friction: Option<f64>,
     restitution: Option<f64>,
     cohesion: Option<f64>,
+    rolling_resistance: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -280,7 +282,12 @@ fn check_law(law: &LawSpec) -> Result<Interaction, String> {
     if restitution > 1.0 {
         return Err(format!("restitution {restitution} must be <= 1"));
     }
-    Ok(Interaction { friction: get(law.friction, "friction")?, restitution, cohesion: get(law.cohesion, "cohesion")? })
+    Ok(Interaction {
+        friction: get(law.friction, "friction")?,
+        restitution,
+        cohesion: get(law.cohesion, "cohesion")?,
+        rolling_resistance: get(law.rolling_resistance, "rolling_resistance")?,
+    })
 }
 
 pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
@@ -298,9 +305,7 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
             Effect::Restitution => effects.restitution = true,
             Effect::Cohesion => effects.cohesion = true,
             Effect::MovingWalls => effects.moving_walls = true,
-            Effect::RollingResistance => {
-                return cx.err(e.span(), "effects", "rolling_resistance is not implemented yet in moreau")
-            }
+            Effect::RollingResistance => effects.rolling_resistance = true,
         }
     }
     if let Some(g) = &file.gravity {
@@ -356,9 +361,13 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         };
     for (k, p) in file.interaction.iter().enumerate() {
         let spec = p.get_ref();
-        let law =
-            check_law(&LawSpec { friction: spec.friction, restitution: spec.restitution, cohesion: spec.cohesion })
-                .or_else(|m| cx.err(p.span(), format!("interaction[{k}]"), m))?;
+        let law = check_law(&LawSpec {
+            friction: spec.friction,
+            restitution: spec.restitution,
+            cohesion: spec.cohesion,
+            rolling_resistance: spec.rolling_resistance,
+        })
+        .or_else(|m| cx.err(p.span(), format!("interaction[{k}]"), m))?;
         let a = material_index(&Some(spec.materials[0].clone()), p.span(), format!("interaction[{k}].materials"))?;
         let b = material_index(&Some(spec.materials[1].clone()), p.span(), format!("interaction[{k}].materials"))?;
         materials.set(a, b, law);
@@ -367,6 +376,7 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         (effects.friction, "friction", materials.max_friction()),
         (effects.restitution, "restitution", materials.max_restitution()),
         (effects.cohesion, "cohesion", materials.max_cohesion()),
+        (effects.rolling_resistance, "rolling_resistance", materials.max_rolling_resistance()),
     ] {
         if !on && max > 0.0 {
             warnings.push(format!("{name} coefficients are given but the effect `{name}` is not named: {name} is off"));
@@ -715,6 +725,19 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
     if let Err(m) = settings.validate() {
         let span = if m.contains("alert") { file.detection.as_ref().map(|d| d.span()) } else { None };
         return cx.err(span.unwrap_or_else(|| file.time.span()), "time/solver/detection", m);
+    }
+    if effects.rolling_resistance {
+        if !effects.rotation {
+            let span = file.effects.iter().find(|e| *e.get_ref() == Effect::RollingResistance).map(|e| e.span());
+            return cx.err(
+                span.unwrap_or(0..0),
+                "effects",
+                "rolling_resistance needs the effect `rotation` (it resists spins)",
+            );
+        }
+        if let Some(why) = crate::solvers::rolling_refusal(true, kind, settings.options.criterion) {
+            return cx.err(solver_span, "solver", why);
+        }
     }
     if time.steps == 0 {
         return cx.err(file.time.span(), "time.steps", "must be >= 1");

@@ -294,9 +294,28 @@ pub struct SolvePart {
     pub stop: StopReason,
 }
 
-/// Solves `problem` from `r0` (warm start; zero if `None`).
+/// Why `kind` cannot solve `problem` with `opts`, if it cannot: rolling resistance is solved by
+/// NLGS, judged by the natural-map or velocity criterion (the other solvers and LMGC90's
+/// criteria know 2 unknowns per contact).
+pub fn refusal(problem: &ContactProblem, kind: SolverKind, opts: &SolverOptions) -> Option<String> {
+    rolling_refusal(problem.has_rolling(), kind, opts.criterion)
+}
+
+/// [`refusal`] before any problem exists (a scene that names `rolling_resistance`).
+pub fn rolling_refusal(rolling: bool, kind: SolverKind, criterion: StopCriterion) -> Option<String> {
+    if rolling && kind != SolverKind::Nlgs {
+        Some(format!("rolling resistance is solved by nlgs only, not {}", kind.name()))
+    } else if rolling && !matches!(criterion, StopCriterion::Natural | StopCriterion::Velocity) {
+        Some(format!("rolling resistance is judged by the natural or velocity criterion, not {}", criterion.name()))
+    } else {
+        None
+    }
+}
+
+/// Solves `problem` from `r0` (warm start; zero if `None`); see [`refusal`] for what a
+/// solver cannot do (the backend refuses it up front).
 pub fn solve(problem: &ContactProblem, kind: SolverKind, opts: &SolverOptions, r0: Option<&[f64]>) -> SolveReport {
-    let n = 2 * problem.n_contacts();
+    let n = problem.unknowns();
     let r0: Vec<f64> = match r0 {
         Some(r) if r.len() == n && r.iter().all(|x| x.is_finite()) => r.to_vec(),
         _ => vec![0.0; n],

@@ -14,7 +14,7 @@ use super::stopping::{CheckCadence, StopReason};
 use super::{HistoryPoint, SolveReport, SolverKind, SolverOptions, StopCriterion};
 use crate::parallel::chunked_sum;
 use crate::problem::cone::project_box;
-use crate::problem::residual::{natural_map_error, velocity_error};
+use crate::problem::residual::{problem_error, velocity_error_rolling};
 use crate::problem::{ContactProblem, Mat2};
 use std::time::{Duration, Instant};
 
@@ -187,7 +187,7 @@ impl<'a> Monitor<'a> {
                 &uu
             }
         };
-        let err = natural_map_error(&self.problem.q, &self.problem.mu, r, u);
+        let err = problem_error(self.problem, r, u);
         let judged = self.judged(r, u, err);
         self.scratch_u = uu;
         self.scratch_check = own_product.then_some((self.iteration, err, judged));
@@ -200,7 +200,10 @@ impl<'a> Monitor<'a> {
     /// The measure the criterion judges, of `r` with `u = W r + q`.
     fn judged(&self, r: &[f64], u: &[f64], error: f64) -> f64 {
         match (self.opts.criterion, &self.diag) {
-            (StopCriterion::Velocity, Some(d)) => velocity_error(d, &self.problem.q, &self.problem.mu, r, u),
+            (StopCriterion::Velocity, Some(d)) => {
+                let p = self.problem;
+                velocity_error_rolling(d, &p.q, &p.mu, &p.rolling, r, u)
+            }
             _ => error,
         }
     }
@@ -217,7 +220,7 @@ impl<'a> Monitor<'a> {
             }
             _ => {
                 let u = self.problem.velocity(&r);
-                let error = natural_map_error(&self.problem.q, &self.problem.mu, &r, &u);
+                let error = problem_error(self.problem, &r, &u);
                 let judged = self.judged(&r, &u, error);
                 (u, error, judged)
             }
@@ -230,7 +233,7 @@ impl<'a> Monitor<'a> {
                     kept[2 * a..2 * a + 2].copy_from_slice(&ra);
                 }
                 let kept_u = self.problem.velocity(&kept);
-                let kept_error = natural_map_error(&self.problem.q, &self.problem.mu, &kept, &kept_u);
+                let kept_error = problem_error(self.problem, &kept, &kept_u);
                 let kept_judged = self.judged(&kept, &kept_u, kept_error);
                 if judged.is_nan() || kept_judged < judged {
                     (r, u, error, judged) = (kept, kept_u, kept_error, kept_judged);

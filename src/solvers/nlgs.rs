@@ -10,6 +10,10 @@
 //! colour is one contiguous range (a sweep then streams through memory as the sequential one
 //! does). That is a sweep in colour order: the same bits for any thread count ≥ 2; one thread
 //! keeps the sequential reference sweep.
+//!
+//! With rolling resistance each contact's rolling unknown is updated right after its (n, t)
+//! pair, against the new normal impulse: `r_r = clamp(r_r − u_r / W_rr, ±η r_n)` (a block
+//! Gauss–Seidel inside the contact, as LMGC90 treats its extra laws).
 
 use rayon::prelude::*;
 
@@ -40,34 +44,46 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveRepo
 pub fn colour_ordered(p: &ContactProblem, op: &MatrixFree) -> (Colouring, ContactProblem) {
     let colouring = op.colouring().clone();
     let order: Vec<usize> = colouring.order.iter().map(|&a| a as usize).collect();
-    let pairs = |x: &[f64]| -> Vec<f64> { order.iter().flat_map(|&a| [x[2 * a], x[2 * a + 1]]).collect() };
     let renumbered = ContactProblem {
         w: Delassus::MatrixFree(op.permuted(&order)),
-        q: pairs(&p.q),
+        q: renumber(&p.q, &order),
         mu: order.iter().map(|&a| p.mu[a]).collect(),
+        rolling: order.iter().filter_map(|&a| p.rolling.get(a).copied()).collect(),
     };
     (colouring, renumbered)
+}
+
+/// `x` (pairs, then rolling unknowns if any) with contact `k` taken from contact `order[k]`.
+fn renumber(x: &[f64], order: &[usize]) -> Vec<f64> {
+    let nc = order.len();
+    let pairs = order.iter().flat_map(|&a| [x[2 * a], x[2 * a + 1]]);
+    pairs.chain(order.iter().filter(|_| x.len() > 2 * nc).map(|&a| x[2 * nc + a])).collect()
+}
+
+/// The inverse of [`renumber`]: contact `order[k]` of the result is contact `k` of `x`.
+fn number_back(x: &mut Vec<f64>, order: &[usize]) {
+    let nc = order.len();
+    let mut y = vec![0.0; x.len()];
+    for (k, &a) in order.iter().enumerate() {
+        y[2 * a] = x[2 * k];
+        y[2 * a + 1] = x[2 * k + 1];
+        if x.len() > 2 * nc {
+            y[2 * nc + a] = x[2 * nc + k];
+        }
+    }
+    *x = y;
 }
 
 /// Renumbers the problem by colour, solves it colour by colour, and numbers the result back.
 fn solve_coloured(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, r: &[f64]) -> SolveReport {
     let (colouring, renumbered) = colour_ordered(p, op);
     let order: Vec<usize> = colouring.order.iter().map(|&a| a as usize).collect();
-    let pairs = |x: &[f64]| -> Vec<f64> { order.iter().flat_map(|&a| [x[2 * a], x[2 * a + 1]]).collect() };
     let ranges: Vec<(usize, usize)> =
         (0..colouring.n_colours()).map(|c| (colouring.start[c] as usize, colouring.start[c + 1] as usize)).collect();
-    let mut report = solve_on(&renumbered, opts, pairs(r), Some(&ranges));
-    let back = |x: &mut Vec<f64>| {
-        let mut y = vec![0.0; x.len()];
-        for (k, &a) in order.iter().enumerate() {
-            y[2 * a] = x[2 * k];
-            y[2 * a + 1] = x[2 * k + 1];
-        }
-        *x = y;
-    };
-    back(&mut report.r);
-    back(&mut report.u);
-    report.iterates.iter_mut().for_each(back);
+    let mut report = solve_on(&renumbered, opts, renumber(r, &order), Some(&ranges));
+    number_back(&mut report.r, &order);
+    number_back(&mut report.u, &order);
+    report.iterates.iter_mut().for_each(|x| number_back(x, &order));
     report
 }
 
@@ -86,12 +102,23 @@ fn solve_on(
     let mut rng = SmallRng::seed_from_u64(opts.seed);
     let mut order: Vec<usize> = (0..nc).collect();
     let local = |a: usize, ra: [f64; 2], wr: [f64; 2]| local_solve(p, &diag[a], a, ra, wr, opts.omega);
-    let update = |a: usize, r: &mut [f64], state: &mut SweepState| update_contact(p, &diag, opts.omega, a, r, state);
+    let rolling = match &p.w {
+        Delassus::MatrixFree(op) if p.has_rolling() => Some(op),
+        _ => None,
+    };
+    let update = |a: usize, r: &mut [f64], state: &mut SweepState| {
+        update_contact(p, &diag, opts.omega, a, r, state);
+        if let Some(op) = rolling {
+            update_rolling(p, op, opts.omega, a, r, state.body_velocity_mut());
+        }
+    };
 
     loop {
         match (colours, &p.w, opts.ordering) {
             (Some(ranges), Delassus::MatrixFree(op), _) => {
-                coloured_sweep(op, ranges, &local, &mut r, state.body_velocity_mut())
+                let roll =
+                    |a: usize, r: &mut SharedSlice, v: &mut SharedSlice| update_rolling(p, op, opts.omega, a, r, v);
+                coloured_sweep(op, ranges, (&local, rolling.map(|_| &roll)), &mut r, state.body_velocity_mut())
             }
             (_, _, Ordering::Forward) => (0..nc).for_each(|a| update(a, &mut r, &mut state)),
             (_, _, Ordering::Backward) => (0..nc).rev().for_each(|a| update(a, &mut r, &mut state)),
@@ -148,14 +175,62 @@ fn local_solve(p: &ContactProblem, d: &Mat2, a: usize, ra: [f64; 2], wr: [f64; 2
     }
 }
 
+/// Contact `a`'s rolling update against its new normal impulse: the exact solve of the rolling
+/// row alone, `clamp(r_r − u_r / W_rr, ±η r_n)`, relaxed by ω before the clamp.
+#[inline]
+fn update_rolling<R, V>(p: &ContactProblem, op: &MatrixFree, omega: f64, a: usize, r: &mut R, v: &mut V)
+where
+    R: Velocities + Setter + ?Sized,
+    V: Velocities + ?Sized,
+{
+    let k = p.unknowns() - p.n_contacts() + a;
+    let w_rr = op.rolling_diag(a);
+    let old = r.get(k);
+    if w_rr <= 0.0 {
+        return; // Neither body turns: the rolling row acts on nothing.
+    }
+    let u = p.q[k] + op.gather_rolling(a, v);
+    let bound = p.rolling[a] * r.get(2 * a).max(0.0);
+    let new = (old - omega * u / w_rr).clamp(-bound, bound);
+    if new != old {
+        r.put(k, new);
+        op.scatter_rolling(a, new - old, v);
+    }
+}
+
+/// Writes one element of the impulses, whether a plain slice or a [`SharedSlice`].
+trait Setter {
+    fn put(&mut self, k: usize, x: f64);
+}
+
+impl Setter for [f64] {
+    #[inline]
+    fn put(&mut self, k: usize, x: f64) {
+        self[k] = x;
+    }
+}
+
+impl Setter for SharedSlice {
+    #[inline]
+    fn put(&mut self, k: usize, x: f64) {
+        self.set(k, x);
+    }
+}
+
+/// A contact's (n, t) solve, and its rolling update when the problem has rolling rows.
+type LocalSolves<'a, L, G> = (&'a L, Option<&'a G>);
+
 /// One sweep in colour order, each colour's contacts (a contiguous range) on threads.
-fn coloured_sweep(
+fn coloured_sweep<L, G>(
     op: &MatrixFree,
     ranges: &[(usize, usize)],
-    local: &(impl Fn(usize, [f64; 2], [f64; 2]) -> [f64; 2] + Sync),
+    (local, rolling): LocalSolves<L, G>,
     r: &mut [f64],
     v: &mut [f64],
-) {
+) where
+    L: Fn(usize, [f64; 2], [f64; 2]) -> [f64; 2] + Sync,
+    G: Fn(usize, &mut SharedSlice, &mut SharedSlice) + Sync,
+{
     let (shared_r, shared_v) = (SharedSlice::new(r), SharedSlice::new(v));
     for &(first, end) in ranges {
         (first..end).into_par_iter().with_min_len(MIN_TASK).for_each(|a| {
@@ -168,6 +243,9 @@ fn coloured_sweep(
                 r.set(2 * a, rn[0]);
                 r.set(2 * a + 1, rn[1]);
                 op.scatter_one(a, dr[0], dr[1], &mut v);
+            }
+            if let Some(roll) = rolling {
+                roll(a, &mut r, &mut v);
             }
         });
     }

@@ -53,8 +53,15 @@ pub struct CarriedContact {
     pub other_wall: Option<usize>,
     pub feature: u64,
     pub impulse: [f64; 2],
+    /// The rolling impulse (rolling resistance; absent when zero).
+    #[serde(skip_serializing_if = "is_zero", default)]
+    pub rolling: f64,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub colour: Option<u32>,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 impl CarriedContact {
@@ -76,12 +83,13 @@ impl Simulation {
         let contacts = entries
             .iter()
             .enumerate()
-            .map(|(e, &((body, other, feature), impulse))| CarriedContact {
+            .map(|(e, &((body, other, feature), [rn, rt, rolling]))| CarriedContact {
                 body,
                 other_body: if let Antagonist::Body(j) = other { Some(j) } else { None },
                 other_wall: if let Antagonist::Wall(w) = other { Some(w) } else { None },
                 feature,
-                impulse,
+                impulse: [rn, rt],
+                rolling,
                 colour: colours.map(|(of_entry, _)| of_entry[e]),
             })
             .collect();
@@ -161,7 +169,8 @@ impl Simulation {
                 return refuse(why);
             }
         }
-        let entries = keys.into_iter().zip(c.contacts.iter().map(|x| x.impulse)).collect();
+        let entries =
+            keys.into_iter().zip(c.contacts.iter().map(|x| [x.impulse[0], x.impulse[1], x.rolling])).collect();
         let b = &mut self.world.bodies;
         b.position = c.position.iter().map(|&p| p.into()).collect();
         b.velocity = c.velocity.iter().map(|&v| v.into()).collect();

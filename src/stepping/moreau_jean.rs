@@ -44,7 +44,9 @@ fn stacked_velocities(world: &World, dofs: Dofs) -> Vec<f64> {
     v
 }
 
-/// The matrix-free operator of the detected contacts, levers taken at the bodies' positions.
+/// The matrix-free operator of the detected contacts, levers taken at the bodies' positions;
+/// with rolling resistance, each contact's rolling radius `R_i R_j / (R_i + R_j)` (`R_i` against
+/// a wall), R a disk's radius or a polygon's bounding radius.
 fn operator(world: &World, contacts: &[DetectedContact], dofs: Dofs) -> Result<MatrixFree, String> {
     let b = &world.bodies;
     let position = &b.position;
@@ -61,7 +63,21 @@ fn operator(world: &World, contacts: &[DetectedContact], dofs: Dofs) -> Result<M
             Contact { i: c.i, j, normal: c.normal.to_array(), lever_i: (c.point - position[c.i]).to_array(), lever_j }
         })
         .collect();
-    MatrixFree::with_dofs(bodies, &rows, dofs)
+    let op = MatrixFree::with_dofs(bodies, &rows, dofs)?;
+    if !world.effects.rolling_resistance {
+        return Ok(op);
+    }
+    let radius = contacts
+        .iter()
+        .map(|c| {
+            let ri = b.radius_of(c.i);
+            match c.other {
+                Antagonist::Body(j) => ri * b.radius_of(j) / (ri + b.radius_of(j)),
+                Antagonist::Wall(_) => ri,
+            }
+        })
+        .collect();
+    op.with_rolling(radius)
 }
 
 /// How far each body and each wall can move within the step (speed × h, gravity included), so
@@ -149,21 +165,31 @@ fn local_problem(
 ) -> Result<(ContactProblem, Vec<f64>), String> {
     let effects = world.effects;
     let nc = contacts.len();
-    let mut q = vec![0.0; 2 * nc];
+    let unknowns = op.unknowns();
+    let mut q = vec![0.0; unknowns];
     op.contact_velocities(v_free, &mut q);
-    let mut u_begin = vec![0.0; 2 * nc];
+    let mut u_begin = vec![0.0; unknowns];
     op.contact_velocities(v_begin, &mut u_begin);
     let mut mu = vec![0.0; nc];
-    let mut shift = if effects.cohesion { vec![0.0; 2 * nc] } else { Vec::new() };
+    let mut rolling = if op.has_rolling() { vec![0.0; nc] } else { Vec::new() };
+    let mut shift = if effects.cohesion { vec![0.0; unknowns] } else { Vec::new() };
     for (a, c) in contacts.iter().enumerate() {
-        let (other_material, wall_velocity) = match c.other {
-            Antagonist::Body(j) => (world.bodies.material[j] as usize, DVec2::ZERO),
+        let (other_material, wall_velocity, wall_spin) = match c.other {
+            Antagonist::Body(j) => (world.bodies.material[j] as usize, DVec2::ZERO, 0.0),
             Antagonist::Wall(w) => {
                 let wall = &world.walls[w];
-                (wall.material, if effects.moving_walls { wall.velocity_at(c.point) } else { DVec2::ZERO })
+                match effects.moving_walls {
+                    true => (wall.material, wall.velocity_at(c.point), wall.spin),
+                    false => (wall.material, DVec2::ZERO, 0.0),
+                }
             }
         };
         let law = world.materials.interaction(world.bodies.material[c.i] as usize, other_material);
+        if let Some(eta) = rolling.get_mut(a) {
+            // Rolling relative to a turning wall: u_r = R (ω_i − ω_wall).
+            q[2 * nc + a] -= op.rolling_radius(a) * wall_spin;
+            *eta = law.rolling_resistance;
+        }
         let (n, t) = (c.normal, c.normal.perp());
         q[2 * a] -= n.dot(wall_velocity);
         if effects.friction {
@@ -185,14 +211,14 @@ fn local_problem(
     }
     // Cohesion: solve for r' = r + c e_n in the plain cone, q' = q − W c e_n.
     if effects.cohesion {
-        let mut ws = vec![0.0; 2 * nc];
+        let mut ws = vec![0.0; unknowns];
         op.apply(&shift, &mut ws);
-        for k in 0..2 * nc {
+        for k in 0..unknowns {
             q[k] -= ws[k];
             r0[k] += shift[k];
         }
     }
-    let problem = ContactProblem::new(Delassus::MatrixFree(op), q, mu).map_err(|e| e.to_string())?;
+    let problem = ContactProblem::with_rolling(Delassus::MatrixFree(op), q, mu, rolling).map_err(|e| e.to_string())?;
     Ok((problem, shift))
 }
 
@@ -301,7 +327,7 @@ pub(super) fn assemble(sim: &mut Simulation, step: usize) -> Result<Assembled, S
     // 3. The local problem, warm-started from last step's impulses (and colours).
     let world = &sim.world;
     let op = operator(world, &assembled.detected, dofs).map_err(|message| StepError::Problem { step, message })?;
-    let recalled = sim.warm_start.recall(&assembled.detected, &op.moving());
+    let recalled = sim.warm_start.recall(&assembled.detected, &op.moving(), op.has_rolling());
     if let Some(kept) = &recalled.colours {
         op.give_colouring(Colouring::repaired(&op, kept));
     }

@@ -186,6 +186,13 @@ pub struct Simulation {
 impl Simulation {
     pub fn new(world: World, settings: StepSettings) -> Result<Self, StepError> {
         settings.validate().map_err(StepError::Settings)?;
+        let rolling = world.effects.rolling_resistance;
+        if let Some(why) = crate::solvers::rolling_refusal(rolling, settings.solver, settings.options.criterion) {
+            return Err(StepError::Settings(why));
+        }
+        if rolling && !world.effects.rotation {
+            return Err(StepError::Settings("rolling resistance needs the effect `rotation`".into()));
+        }
         Ok(Self {
             world,
             settings,
@@ -228,6 +235,9 @@ impl Simulation {
     /// settings' solve (the same check the command line makes).
     pub fn set_backend(&mut self, backend: Backend) -> Result<(), StepError> {
         backend.check(self.settings.solver, &self.settings.options).map_err(|e| StepError::Settings(e.to_string()))?;
+        if backend.is_gpu() && self.world.effects.rolling_resistance {
+            return Err(StepError::Settings(crate::backend::ROLLING_ON_CPU.into()));
+        }
         self.backend = backend;
         Ok(())
     }
@@ -235,7 +245,8 @@ impl Simulation {
     /// Solves every step on the device `choice` picks for the settings' solve (`auto`: a
     /// hardware GPU that can do it, else the CPU); returns the device and why, in one line.
     pub fn choose_device(&mut self, choice: DeviceChoice) -> Result<String, StepError> {
-        let backend = Backend::choose(choice, self.settings.solver, &self.settings.options)
+        let rolling = self.world.effects.rolling_resistance;
+        let backend = Backend::choose_for(choice, self.settings.solver, &self.settings.options, rolling)
             .map_err(|e| StepError::Settings(e.to_string()))?;
         let line = backend.describe();
         self.backend = backend;

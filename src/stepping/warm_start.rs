@@ -8,8 +8,8 @@ use crate::problem::colouring::Colouring;
 
 pub(crate) type Key = (usize, Antagonist, u64);
 
-/// A contact's key and impulse.
-pub(crate) type Entry = (Key, [f64; 2]);
+/// A contact's key and impulse (normal, tangential, rolling; rolling 0 without rolling resistance).
+pub(crate) type Entry = (Key, [f64; 3]);
 
 /// Last step's impulses and colours, sorted by contact key.
 #[derive(Default, Clone, Debug)]
@@ -28,7 +28,7 @@ struct Colours {
 
 /// What the last step carries over to `contacts`.
 pub struct Recalled {
-    /// Initial impulses, 2 per contact (zero for a new contact).
+    /// Initial impulses, 2 per contact then 1 per contact with rolling (zero for a new contact).
     pub impulses: Vec<f64>,
     /// How many contacts were found in last step's set.
     pub matched: usize,
@@ -60,8 +60,9 @@ impl WarmStart {
         self.colours = None;
     }
 
-    /// Remembers `impulses` (2 per contact) of `contacts` (sorted by key, as detection returns
-    /// them), and the colouring the solve used, if any, with the bodies that could move.
+    /// Remembers `impulses` (2 per contact, then 1 per contact with rolling resistance) of
+    /// `contacts` (sorted by key, as detection returns them), and the colouring the solve used,
+    /// if any, with the bodies that could move.
     pub fn remember(
         &mut self,
         contacts: &[DetectedContact],
@@ -69,15 +70,20 @@ impl WarmStart {
         colouring: Option<(&Colouring, Vec<bool>)>,
     ) {
         self.entries.clear();
-        self.entries
-            .extend(contacts.iter().enumerate().map(|(a, c)| (c.key(), [impulses[2 * a], impulses[2 * a + 1]])));
+        let nc = contacts.len();
+        let rolling = |a: usize| impulses.get(2 * nc + a).copied().unwrap_or(0.0);
+        self.entries.extend(
+            contacts.iter().enumerate().map(|(a, c)| (c.key(), [impulses[2 * a], impulses[2 * a + 1], rolling(a)])),
+        );
         debug_assert!(self.entries.windows(2).all(|w| w[0].0 <= w[1].0));
         self.colours = colouring.map(|(c, moving)| Colours { of_entry: c.colour_of_each(), moving });
     }
 
-    /// What carries over to `contacts` (sorted by key); `moving` says which bodies can move now.
-    pub fn recall(&self, contacts: &[DetectedContact], moving: &[bool]) -> Recalled {
-        let mut impulses = vec![0.0; 2 * contacts.len()];
+    /// What carries over to `contacts` (sorted by key); `moving` says which bodies can move now,
+    /// `rolling` whether the contacts have rolling unknowns.
+    pub fn recall(&self, contacts: &[DetectedContact], moving: &[bool], rolling: bool) -> Recalled {
+        let nc = contacts.len();
+        let mut impulses = vec![0.0; if rolling { 3 * nc } else { 2 * nc }];
         let colours = self.colours.as_ref().filter(|c| c.moving == moving);
         let mut kept = colours.map(|_| vec![None; contacts.len()]);
         let mut matched = 0;
@@ -91,6 +97,9 @@ impl WarmStart {
             if e < self.entries.len() && self.entries[e].0 == key {
                 impulses[2 * a] = self.entries[e].1[0];
                 impulses[2 * a + 1] = self.entries[e].1[1];
+                if rolling {
+                    impulses[2 * nc + a] = self.entries[e].1[2];
+                }
                 if let (Some(kept), Some(colours)) = (kept.as_mut(), colours) {
                     kept[a] = Some(colours.of_entry[e]);
                 }

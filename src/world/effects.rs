@@ -44,6 +44,8 @@ pub struct Effects {
     pub cohesion: bool,
     /// Walls may have a prescribed velocity.
     pub moving_walls: bool,
+    /// A rolling unknown per contact: a torque resisting relative rolling, at most η R r_n.
+    pub rolling_resistance: bool,
 }
 
 impl Effects {
@@ -56,6 +58,7 @@ impl Effects {
             (self.rotation, Effect::Rotation),
             (self.restitution, Effect::Restitution),
             (self.cohesion, Effect::Cohesion),
+            (self.rolling_resistance, Effect::RollingResistance),
             (self.moving_walls, Effect::MovingWalls),
         ];
         for (is_on, e) in on {

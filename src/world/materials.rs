@@ -6,6 +6,8 @@ pub struct Interaction {
     pub friction: f64,
     pub restitution: f64,
     pub cohesion: f64,
+    /// η: the rolling resistance torque is at most η R r_n (R the contact's rolling radius).
+    pub rolling_resistance: f64,
 }
 
 /// Material names, densities and a symmetric table of interactions.
@@ -55,5 +57,8 @@ impl Materials {
     }
     pub fn max_cohesion(&self) -> f64 {
         self.table.iter().map(|l| l.cohesion).fold(0.0, f64::max)
+    }
+    pub fn max_rolling_resistance(&self) -> f64 {
+        self.table.iter().map(|l| l.rolling_resistance).fold(0.0, f64::max)
     }
 }
