@@ -2,6 +2,8 @@
 // |r_t| ≤ s, and diff = next − γ for the restart test. g = W y + q comes from the operator.
 // scalars: 0 g·diff, 1 θ, 2 β, 3 restart, 4 1/L. CPU mirror: src/gpu/cpu/apgd_step.rs
 
+#import grid
+
 @group(0) @binding(0) var<storage, read> scalars: array<f32>;
 @group(0) @binding(1) var<storage, read> g: array<vec2<f32>>;
 @group(0) @binding(2) var<storage, read> y: array<vec2<f32>>;
@@ -12,8 +14,7 @@
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    // Past 65,535 workgroups the dispatch is a 2D grid of rows (kernels.rs `dispatch`).
-    let gid = vec3<u32>(grid.x + grid.y * groups.x * 64u, 0u, 0u);
+    let gid = vec3<u32>(element_index(grid, groups), 0u, 0u);
     let a = gid.x;
     if (a >= arrayLength(&s)) {
         return;

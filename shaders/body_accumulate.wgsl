@@ -2,15 +2,8 @@
 // from a body→contact list in contact order: deterministic, no float atomics.
 // CPU mirror: src/gpu/cpu/body_accumulate.rs
 
-override ROTATION: bool = true;
-override FRICTION: bool = true;
-
-struct Contact {
-    n: vec2<f32>,
-    i: u32,
-    j: u32,          // 0xffffffff: a fixed obstacle
-    levers: vec4<f32>, // (ρi×n, ρi×t, ρj×n, ρj×t)
-}
+#import grid
+#import contact
 
 @group(0) @binding(0) var<storage, read> contacts: array<Contact>;
 @group(0) @binding(1) var<storage, read> body_start: array<u32>;
@@ -21,8 +14,7 @@ struct Contact {
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    // Past 65,535 workgroups the dispatch is a 2D grid of rows (kernels.rs `dispatch`).
-    let gid = vec3<u32>(grid.x + grid.y * groups.x * 64u, 0u, 0u);
+    let gid = vec3<u32>(element_index(grid, groups), 0u, 0u);
     let k = gid.x;
     if (k >= arrayLength(&inv_mass)) {
         return;

@@ -1,6 +1,8 @@
 // u = W r + q for an explicit 2×2-block sparse W (problems read from files), one invocation per
 // block row. CPU mirror: src/gpu/cpu/bsr_product.rs
 
+#import grid
+
 @group(0) @binding(0) var<storage, read> row_ptr: array<u32>;
 @group(0) @binding(1) var<storage, read> cols: array<u32>;
 @group(0) @binding(2) var<storage, read> blocks: array<vec4<f32>>; // (nn, nt, tn, tt)
@@ -10,8 +12,7 @@
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    // Past 65,535 workgroups the dispatch is a 2D grid of rows (kernels.rs `dispatch`).
-    let gid = vec3<u32>(grid.x + grid.y * groups.x * 64u, 0u, 0u);
+    let gid = vec3<u32>(element_index(grid, groups), 0u, 0u);
     let a = gid.x;
     if (a >= arrayLength(&q)) {
         return;

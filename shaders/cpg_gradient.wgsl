@@ -2,6 +2,8 @@
 // of the box at r (LMGC90 `proj_facette`, notes §4.2), giving w and z.
 // CPU mirror: src/gpu/cpu/cpg_gradient.rs
 
+#import grid
+
 @group(0) @binding(0) var<storage, read> u: array<vec2<f32>>;
 @group(0) @binding(1) var<storage, read> scale: array<vec2<f32>>;
 @group(0) @binding(2) var<storage, read> d: array<vec2<f32>>;
@@ -12,8 +14,7 @@
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    // Past 65,535 workgroups the dispatch is a 2D grid of rows (kernels.rs `dispatch`).
-    let gid = vec3<u32>(grid.x + grid.y * groups.x * 64u, 0u, 0u);
+    let gid = vec3<u32>(element_index(grid, groups), 0u, 0u);
     let a = gid.x;
     if (a >= arrayLength(&mu)) {
         return;

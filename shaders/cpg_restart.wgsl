@@ -1,13 +1,14 @@
 // d ← w when stage 0 of cpg_scalars asked for a restart. CPU mirror: src/gpu/cpu/cpg_restart.rs
 
+#import grid
+
 @group(0) @binding(0) var<storage, read> scalars: array<f32>;
 @group(0) @binding(1) var<storage, read> w: array<vec2<f32>>;
 @group(0) @binding(2) var<storage, read_write> d: array<vec2<f32>>;
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    // Past 65,535 workgroups the dispatch is a 2D grid of rows (kernels.rs `dispatch`).
-    let gid = vec3<u32>(grid.x + grid.y * groups.x * 64u, 0u, 0u);
+    let gid = vec3<u32>(element_index(grid, groups), 0u, 0u);
     let a = gid.x;
     if (a >= arrayLength(&w) || scalars[8] == 0.0) {
         return;

@@ -2,6 +2,8 @@
 // notes §4.2); changed[a] = 1 when the contact's status moved. Status: 0 open, 1 stick,
 // 2 slide r_t = +μ r_n, 3 slide r_t = −μ r_n. CPU mirror: src/gpu/cpu/cpg_update.rs
 
+#import grid
+
 @group(0) @binding(0) var<storage, read> scalars: array<f32>;
 @group(0) @binding(1) var<storage, read> d: array<vec2<f32>>;
 @group(0) @binding(2) var<storage, read> mu: array<f32>;
@@ -11,8 +13,7 @@
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    // Past 65,535 workgroups the dispatch is a 2D grid of rows (kernels.rs `dispatch`).
-    let gid = vec3<u32>(grid.x + grid.y * groups.x * 64u, 0u, 0u);
+    let gid = vec3<u32>(element_index(grid, groups), 0u, 0u);
     let a = gid.x;
     if (a >= arrayLength(&mu)) {
         return;

@@ -1,6 +1,9 @@
 // Projected Jacobi update of every contact from u = W r + q (notes §6.2):
 // r ← Π_K(r − η (u_n + μ|u_t|, u_t)), De Saxcé's ũ so the fixed point is exact Coulomb.
-// Prepended with single_contact.wgsl (its cone projection). CPU mirror: src/gpu/cpu/jacobi_update.rs
+// CPU mirror: src/gpu/cpu/jacobi_update.rs
+
+#import grid
+#import single_contact
 
 @group(0) @binding(0) var<storage, read> u: array<vec2<f32>>;
 @group(0) @binding(1) var<storage, read> mu: array<f32>;
@@ -9,8 +12,7 @@
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    // Past 65,535 workgroups the dispatch is a 2D grid of rows (kernels.rs `dispatch`).
-    let gid = vec3<u32>(grid.x + grid.y * groups.x * 64u, 0u, 0u);
+    let gid = vec3<u32>(element_index(grid, groups), 0u, 0u);
     let a = gid.x;
     if (a >= arrayLength(&mu)) {
         return;

@@ -1,7 +1,10 @@
 // Per-contact natural-map residual F = r − Π_K(r − ũ), ũ = (u_n + μ|u_t|, u_t) (notes §7.1), for
 // the on-GPU estimate of the error: the driver reduces |F|², |r|², |u|² with reduce_dot and reads
-// back three numbers instead of r. Prepended with single_contact.wgsl (cone projection).
+// back three numbers instead of r.
 // CPU mirror: src/gpu/cpu/natural_map.rs
+
+#import grid
+#import single_contact
 
 @group(0) @binding(0) var<storage, read> r: array<vec2<f32>>;
 @group(0) @binding(1) var<storage, read> u: array<vec2<f32>>;
@@ -10,8 +13,7 @@
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    // Past 65,535 workgroups the dispatch is a 2D grid of rows (kernels.rs `dispatch`).
-    let gid = vec3<u32>(grid.x + grid.y * groups.x * 64u, 0u, 0u);
+    let gid = vec3<u32>(element_index(grid, groups), 0u, 0u);
     let a = gid.x;
     if (a >= arrayLength(&mu)) {
         return;

@@ -2,22 +2,12 @@
 // one colour share no moving body, so they are solved in parallel with exact Gauss–Seidel
 // semantics. Each contact reads its velocity from the body velocities v = M⁻¹ Bᵀ r, solves its
 // single-contact problem and scatters its impulse change into v (no two writers per body).
-// Prepended with single_contact.wgsl. CPU mirror: src/gpu/cpu/nlgs_colour.rs
+// CPU mirror: src/gpu/cpu/nlgs_colour.rs
 
-override ROTATION: bool = true;
-override FRICTION: bool = true;
-
-struct Contact {
-    n: vec2<f32>,
-    i: u32,
-    j: u32,
-    levers: vec4<f32>,
-}
-
-struct Range {
-    start: u32,
-    count: u32,
-}
+#import grid
+#import single_contact
+#import contact
+#import range
 
 @group(0) @binding(0) var<storage, read> contacts: array<Contact>;
 @group(0) @binding(1) var<storage, read> inv_mass: array<vec2<f32>>;
@@ -41,36 +31,20 @@ fn scatter(k: u32, s: f32, f: vec2<f32>, torque: f32) {
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    // Past 65,535 workgroups the dispatch is a 2D grid of rows (kernels.rs `dispatch`).
-    let gid = vec3<u32>(grid.x + grid.y * groups.x * 64u, 0u, 0u);
+    let gid = vec3<u32>(element_index(grid, groups), 0u, 0u);
     if (gid.x >= range.count) {
         return;
     }
     let a = order[range.start + gid.x];
     let c = contacts[a];
     let t = vec2<f32>(-c.n.y, c.n.x);
-    let vi = v[c.i];
-    var dv = vi.xy;
-    var wj = 0.0;
-    if (c.j != 0xffffffffu) {
-        let vj = v[c.j];
-        dv = dv - vj.xy;
-        wj = vj.z;
-    }
-    var un = dot(c.n, dv);
-    var ut = 0.0;
-    if (FRICTION) {
-        ut = dot(t, dv);
-    }
-    if (ROTATION) {
-        un = un + c.levers.x * vi.z - c.levers.z * wj;
-        if (FRICTION) {
-            ut = ut + c.levers.y * vi.z - c.levers.w * wj;
-        }
+    var vj = vec4<f32>(0.0);
+    if (c.j != NO_BODY) {
+        vj = v[c.j];
     }
     let w = diag[a];
     let ra = r[a];
-    let u = vec2<f32>(un, ut) + q[a];
+    let u = relative_velocity(c, v[c.i], vj) + q[a];
     let q_local = u - vec2<f32>(w.x * ra.x + w.y * ra.y, w.z * ra.x + w.w * ra.y);
     let rn = solve_single_contact(w, q_local, mu[a]);
     let d = rn - ra;
@@ -90,7 +64,7 @@ fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups)
         }
     }
     scatter(c.i, 1.0, f, ti);
-    if (c.j != 0xffffffffu) {
+    if (c.j != NO_BODY) {
         scatter(c.j, -1.0, f, tj);
     }
 }

@@ -1,12 +1,11 @@
 // One colour of a graph-coloured NLGS sweep on an explicit block-sparse W (problem files):
 // contacts of one colour have no W block between them, so each row reads only impulses that no
-// other invocation of the dispatch writes. Prepended with single_contact.wgsl.
+// other invocation of the dispatch writes.
 // CPU mirror: src/gpu/cpu/nlgs_colour_bsr.rs
 
-struct Range {
-    start: u32,
-    count: u32,
-}
+#import grid
+#import single_contact
+#import range
 
 @group(0) @binding(0) var<storage, read> row_ptr: array<u32>;
 @group(0) @binding(1) var<storage, read> cols: array<u32>;
@@ -20,8 +19,7 @@ struct Range {
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    // Past 65,535 workgroups the dispatch is a 2D grid of rows (kernels.rs `dispatch`).
-    let gid = vec3<u32>(grid.x + grid.y * groups.x * 64u, 0u, 0u);
+    let gid = vec3<u32>(element_index(grid, groups), 0u, 0u);
     if (gid.x >= range.count) {
         return;
     }

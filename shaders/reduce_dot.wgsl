@@ -3,15 +3,14 @@
 // partials[g]. No atomics: the result does not depend on scheduling.
 // CPU mirror: src/gpu/cpu/reduce_dot.rs
 
-const WG: u32 = 256u;
+#import tree_sum
+
 const PER_THREAD: u32 = 4u;
 
 @group(0) @binding(0) var<storage, read> a: array<f32>;
 @group(0) @binding(1) var<storage, read> b: array<f32>;
 @group(0) @binding(2) var<storage, read_write> partials: array<f32>;
 @group(0) @binding(3) var<uniform> len: vec4<u32>; // x: number of entries
-
-var<workgroup> tree: array<f32, 256>;
 
 @compute @workgroup_size(256)
 fn main(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
@@ -24,15 +23,8 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid
             s = s + a[i] * b[i];
         }
     }
-    tree[lid.x] = s;
-    workgroupBarrier();
-    for (var half = WG / 2u; half > 0u; half = half / 2u) {
-        if (lid.x < half) {
-            tree[lid.x] = tree[lid.x] + tree[lid.x + half];
-        }
-        workgroupBarrier();
-    }
+    let total = tree_sum(lid.x, s);
     if (lid.x == 0u) {
-        partials[wid.x] = tree[0];
+        partials[wid.x] = total;
     }
 }

@@ -44,55 +44,91 @@ pub struct Kernels {
     pub natural_map: wgpu::ComputePipeline,
 }
 
-const SINGLE_CONTACT: &str = include_str!("../../shaders/single_contact.wgsl");
+/// The shared WGSL a kernel pulls in with `#import name` lines: written once, composed at load.
+const MODULES: [(&str, &str); 5] = [
+    ("grid", include_str!("../../shaders/shared/grid.wgsl")),
+    ("contact", include_str!("../../shaders/shared/contact.wgsl")),
+    ("range", include_str!("../../shaders/shared/range.wgsl")),
+    ("tree_sum", include_str!("../../shaders/shared/tree_sum.wgsl")),
+    ("single_contact", include_str!("../../shaders/shared/single_contact.wgsl")),
+];
+
+/// Every kernel: name, WGSL (before composition), and whether it is specialised by the
+/// rotation and friction constants.
+pub const KERNELS: [(&str, &str, bool); 18] = [
+    ("body_accumulate", include_str!("../../shaders/body_accumulate.wgsl"), true),
+    ("contact_gather", include_str!("../../shaders/contact_gather.wgsl"), true),
+    ("bsr_product", include_str!("../../shaders/bsr_product.wgsl"), false),
+    ("jacobi_update", include_str!("../../shaders/jacobi_update.wgsl"), false),
+    ("nlgs_colour", include_str!("../../shaders/nlgs_colour.wgsl"), true),
+    ("nlgs_colour_bsr", include_str!("../../shaders/nlgs_colour_bsr.wgsl"), false),
+    ("reduce_dot", include_str!("../../shaders/reduce_dot.wgsl"), false),
+    ("reduce_final", include_str!("../../shaders/reduce_final.wgsl"), false),
+    ("cpg_scalars", include_str!("../../shaders/cpg_scalars.wgsl"), false),
+    ("cpg_restart", include_str!("../../shaders/cpg_restart.wgsl"), false),
+    ("cpg_update", include_str!("../../shaders/cpg_update.wgsl"), false),
+    ("cpg_gradient", include_str!("../../shaders/cpg_gradient.wgsl"), false),
+    ("cpg_direction", include_str!("../../shaders/cpg_direction.wgsl"), false),
+    ("apgd_step", include_str!("../../shaders/apgd_step.wgsl"), false),
+    ("apgd_scalars", include_str!("../../shaders/apgd_scalars.wgsl"), false),
+    ("apgd_momentum", include_str!("../../shaders/apgd_momentum.wgsl"), false),
+    ("apgd_rebox", include_str!("../../shaders/apgd_rebox.wgsl"), false),
+    ("natural_map", include_str!("../../shaders/natural_map.wgsl"), false),
+];
+
+/// `source` with each `#import name` line replaced by that shared module (a module imported
+/// twice is pasted once); an unknown name is an error naming the kernel.
+pub fn compose(kernel: &str, source: &str) -> Result<String, String> {
+    let mut out = String::with_capacity(source.len());
+    let mut pasted: Vec<&str> = Vec::new();
+    for line in source.lines() {
+        match line.trim().strip_prefix("#import ") {
+            Some(name) => {
+                let name = name.trim();
+                let Some((_, text)) = MODULES.iter().find(|(m, _)| *m == name) else {
+                    return Err(format!("kernel {kernel}: #import {name}: no such shared module (shaders/shared/)"));
+                };
+                if !pasted.contains(&name) {
+                    pasted.push(name);
+                    out.push_str(text);
+                }
+            }
+            None => out.push_str(line),
+        }
+        out.push('\n');
+    }
+    Ok(out)
+}
 
 impl Kernels {
     pub fn new(ctx: &GpuContext, rotation: bool, friction: bool) -> Self {
         let flags = [("ROTATION", rotation as u8 as f64), ("FRICTION", friction as u8 as f64)];
+        let k = |name: &str| {
+            let (_, source, specialised) =
+                KERNELS.iter().find(|(n, ..)| *n == name).expect("every pipeline of Kernels is listed in KERNELS");
+            // The sources are fixed at build time, and a unit test composes every one.
+            let source = compose(name, source).expect("the shared modules of shaders/shared/");
+            pipeline(ctx, name, &source, if *specialised { &flags } else { &[] })
+        };
         Self {
-            body_accumulate: pipeline(
-                ctx,
-                "body_accumulate",
-                include_str!("../../shaders/body_accumulate.wgsl"),
-                &flags,
-            ),
-            contact_gather: pipeline(ctx, "contact_gather", include_str!("../../shaders/contact_gather.wgsl"), &flags),
-            bsr_product: pipeline(ctx, "bsr_product", include_str!("../../shaders/bsr_product.wgsl"), &[]),
-            jacobi_update: pipeline(
-                ctx,
-                "jacobi_update",
-                &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/jacobi_update.wgsl")),
-                &[],
-            ),
-            nlgs_colour: pipeline(
-                ctx,
-                "nlgs_colour",
-                &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/nlgs_colour.wgsl")),
-                &flags,
-            ),
-            nlgs_colour_bsr: pipeline(
-                ctx,
-                "nlgs_colour_bsr",
-                &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/nlgs_colour_bsr.wgsl")),
-                &[],
-            ),
-            reduce_dot: pipeline(ctx, "reduce_dot", include_str!("../../shaders/reduce_dot.wgsl"), &[]),
-            reduce_final: pipeline(ctx, "reduce_final", include_str!("../../shaders/reduce_final.wgsl"), &[]),
-            cpg_scalars: pipeline(ctx, "cpg_scalars", include_str!("../../shaders/cpg_scalars.wgsl"), &[]),
-            cpg_restart: pipeline(ctx, "cpg_restart", include_str!("../../shaders/cpg_restart.wgsl"), &[]),
-            cpg_update: pipeline(ctx, "cpg_update", include_str!("../../shaders/cpg_update.wgsl"), &[]),
-            cpg_gradient: pipeline(ctx, "cpg_gradient", include_str!("../../shaders/cpg_gradient.wgsl"), &[]),
-            cpg_direction: pipeline(ctx, "cpg_direction", include_str!("../../shaders/cpg_direction.wgsl"), &[]),
-            apgd_step: pipeline(ctx, "apgd_step", include_str!("../../shaders/apgd_step.wgsl"), &[]),
-            apgd_scalars: pipeline(ctx, "apgd_scalars", include_str!("../../shaders/apgd_scalars.wgsl"), &[]),
-            apgd_momentum: pipeline(ctx, "apgd_momentum", include_str!("../../shaders/apgd_momentum.wgsl"), &[]),
-            apgd_rebox: pipeline(ctx, "apgd_rebox", include_str!("../../shaders/apgd_rebox.wgsl"), &[]),
-            natural_map: pipeline(
-                ctx,
-                "natural_map",
-                &format!("{SINGLE_CONTACT}\n{}", include_str!("../../shaders/natural_map.wgsl")),
-                &[],
-            ),
+            body_accumulate: k("body_accumulate"),
+            contact_gather: k("contact_gather"),
+            bsr_product: k("bsr_product"),
+            jacobi_update: k("jacobi_update"),
+            nlgs_colour: k("nlgs_colour"),
+            nlgs_colour_bsr: k("nlgs_colour_bsr"),
+            reduce_dot: k("reduce_dot"),
+            reduce_final: k("reduce_final"),
+            cpg_scalars: k("cpg_scalars"),
+            cpg_restart: k("cpg_restart"),
+            cpg_update: k("cpg_update"),
+            cpg_gradient: k("cpg_gradient"),
+            cpg_direction: k("cpg_direction"),
+            apgd_step: k("apgd_step"),
+            apgd_scalars: k("apgd_scalars"),
+            apgd_momentum: k("apgd_momentum"),
+            apgd_rebox: k("apgd_rebox"),
+            natural_map: k("natural_map"),
         }
     }
 }
@@ -206,4 +242,34 @@ pub fn read_back<T: bytemuck::Pod>(ctx: &GpuContext, buffer: &wgpu::Buffer, coun
     drop(data);
     staging.unmap();
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_kernel_composes_to_valid_wgsl_with_each_shared_item_written_once() {
+        for (name, source, _) in KERNELS {
+            let wgsl = compose(name, source).unwrap();
+            assert!(!wgsl.contains("#import"), "{name}: an import is left");
+            for item in ["struct Contact", "struct Range", "fn element_index", "fn tree_sum", "fn solve_single_contact"]
+            {
+                assert!(wgsl.matches(item).count() <= 1, "{name}: {item} twice");
+            }
+            let module =
+                naga::front::wgsl::parse_str(&wgsl).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&wgsl)));
+            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
+                .validate(&module)
+                .unwrap_or_else(|e| panic!("{name}: {e:?}"));
+        }
+        // Shared items live in shaders/shared/ only.
+        for (name, source, _) in KERNELS {
+            for item in ["struct Contact", "struct Range", "var<workgroup> tree", "override ROTATION"] {
+                assert!(!source.contains(item), "shaders/{name}.wgsl writes {item} itself");
+            }
+        }
+        let e = compose("k", "#import nowhere\n").unwrap_err();
+        assert!(e.contains("kernel k") && e.contains("nowhere"), "{e}");
+    }
 }

@@ -14,7 +14,7 @@ fn run(ctx: &GpuContext, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGro
 }
 
 pub fn body_accumulate(ctx: &GpuContext, op: &MatrixFreeLayout, r: &[[f32; 2]]) -> Result<Vec<[f32; 4]>, GpuError> {
-    let k = Kernels::new(ctx, op.rotation, op.friction);
+    let k = ctx.kernels(op.rotation, op.friction);
     let bufs = [
         storage(ctx, "contacts", &op.contacts),
         storage(ctx, "start", &op.body_start),
@@ -34,7 +34,7 @@ pub fn contact_gather(
     v: &[[f32; 4]],
     q: &[[f32; 2]],
 ) -> Result<Vec<[f32; 2]>, GpuError> {
-    let k = Kernels::new(ctx, op.rotation, op.friction);
+    let k = ctx.kernels(op.rotation, op.friction);
     let bufs = [
         storage(ctx, "contacts", &op.contacts),
         storage(ctx, "v", v),
@@ -47,7 +47,7 @@ pub fn contact_gather(
 }
 
 pub fn bsr_product(ctx: &GpuContext, w: &BsrLayout, r: &[[f32; 2]], q: &[[f32; 2]]) -> Result<Vec<[f32; 2]>, GpuError> {
-    let k = Kernels::new(ctx, true, true);
+    let k = ctx.kernels(true, true);
     let bufs = [
         storage(ctx, "row_ptr", &w.row_ptr),
         storage(ctx, "cols", &w.cols),
@@ -68,7 +68,7 @@ pub fn jacobi_update(
     step: &[f32],
     r: &[[f32; 2]],
 ) -> Result<Vec<[f32; 2]>, GpuError> {
-    let k = Kernels::new(ctx, true, true);
+    let k = ctx.kernels(true, true);
     let bufs = [storage(ctx, "u", u), storage(ctx, "mu", mu), storage(ctx, "step", step), storage(ctx, "r", r)];
     let group = bind(ctx, &k.jacobi_update, &bufs.iter().collect::<Vec<_>>());
     run(ctx, &k.jacobi_update, &group, mu.len());
@@ -88,7 +88,7 @@ pub fn nlgs_colour(
     r: &[[f32; 2]],
     v: &[[f32; 4]],
 ) -> Result<ImpulsesAndVelocities, GpuError> {
-    let k = Kernels::new(ctx, op.rotation, op.friction);
+    let k = ctx.kernels(op.rotation, op.friction);
     let count = colouring.start[colour + 1] - colouring.start[colour];
     let range = super::kernels::uniform(ctx, "range", &[colouring.start[colour], count, 0, 0]);
     let bufs = [
@@ -123,7 +123,7 @@ pub fn nlgs_colour_bsr(
     colour: usize,
     r: &[[f32; 2]],
 ) -> Result<Vec<[f32; 2]>, GpuError> {
-    let k = Kernels::new(ctx, true, true);
+    let k = ctx.kernels(true, true);
     let count = colouring.start[colour + 1] - colouring.start[colour];
     let range = super::kernels::uniform(ctx, "range", &[colouring.start[colour], count, 0, 0]);
     let bufs = [
@@ -154,7 +154,7 @@ pub fn run_raw(
     workgroups: u32,
     read: &[usize],
 ) -> Result<Vec<Vec<u8>>, GpuError> {
-    let k = Kernels::new(ctx, true, true);
+    let k = ctx.kernels(true, true);
     let pipeline = pick(&k);
     let bufs: Vec<GpuBuffer> = buffers.iter().map(|b| storage(ctx, "raw", b)).collect();
     let unis: Vec<GpuBuffer> = uniforms.iter().map(|u| super::kernels::uniform(ctx, "raw", u)).collect();

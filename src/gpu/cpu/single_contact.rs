@@ -1,4 +1,4 @@
-//! Mirror of `shaders/single_contact.wgsl`: the exact single-contact solve in f32.
+//! Mirror of `shaders/shared/single_contact.wgsl`: the exact single-contact solve in f32.
 
 pub(crate) fn project_cone(x: [f32; 2], m: f32) -> [f32; 2] {
     if x[0] >= 0.0 && x[1].abs() <= m * x[0] {

@@ -1,4 +1,4 @@
-// Exact single-contact 2D Coulomb solve in f32 (notes §2), prepended to the NLGS kernels:
+// Exact single-contact 2D Coulomb solve in f32 (notes §2), imported by the NLGS kernels:
 // open, stick trial, then the sliding edge that opposes the sliding velocity; when no candidate
 // satisfies the law (μ|W_nt| ≥ W_nn) the one with the smallest natural-map residual.
 // CPU mirror: src/gpu/cpu/single_contact.rs (and, in f64, src/problem/cone.rs).
