@@ -290,307 +290,424 @@ fn check_law(law: &LawSpec) -> Result<Interaction, String> {
     })
 }
 
+/// Builds a scene from its parsed file, one named part at a time; every error names the line
+/// and the field, warnings gather as it goes.
+struct Builder<'a> {
+    file: &'a SceneFile,
+    cx: Ctx<'a>,
+    warnings: Vec<String>,
+    /// The smallest grain radius (generated grains: their drawn radius), for the default alert.
+    smallest_radius: f64,
+}
+
 pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
     let file: SceneFile = from_toml(text, origin)?;
-    let cx = Ctx { text, origin };
-    let mut warnings = Vec::new();
-
-    // Effects.
-    let mut effects = Effects::default();
-    for e in &file.effects {
-        match *e.get_ref() {
-            Effect::Gravity => effects.gravity = Some(DVec2::new(0.0, -9.81)),
-            Effect::Friction => effects.friction = true,
-            Effect::Rotation => effects.rotation = true,
-            Effect::Restitution => effects.restitution = true,
-            Effect::Cohesion => effects.cohesion = true,
-            Effect::MovingWalls => effects.moving_walls = true,
-            Effect::RollingResistance => effects.rolling_resistance = true,
-        }
-    }
-    if let Some(g) = &file.gravity {
-        if !finite(&g.get_ref()[..]) {
-            return cx.err(g.span(), "gravity", "must be finite");
-        }
-        if effects.gravity.is_some() {
-            effects.gravity = Some(v(*g.get_ref()));
-        } else {
-            warnings.push("`gravity` is given but the effect `gravity` is not named: gravity is off".into());
-        }
-    }
-
-    // Materials and interactions.
-    if file.material.is_empty() {
-        return cx.err(0..0, "material", "a scene needs at least one [[material]] (name, density)");
-    }
-    let mut names = Vec::new();
-    let mut density = Vec::new();
-    for (k, m) in file.material.iter().enumerate() {
-        let spec = m.get_ref();
-        if names.contains(&spec.name) {
-            return cx.err(
-                m.span(),
-                format!("material[{k}].name"),
-                format!("material {:?} is defined twice", spec.name),
-            );
-        }
-        if !(spec.density.is_finite() && spec.density > 0.0) {
-            return cx.err(
-                m.span(),
-                format!("material[{k}].density"),
-                format!("{} must be finite and > 0", spec.density),
-            );
-        }
-        names.push(spec.name.clone());
-        density.push(spec.density);
-    }
-    let default_law = match &file.contact {
-        Some(c) => check_law(c.get_ref()).or_else(|m| cx.err(c.span(), "contact", m))?,
-        None => Interaction::default(),
-    };
-    let mut materials = Materials::new(names, density, default_law);
-    let material_index =
-        |name: &Option<String>, span: std::ops::Range<usize>, field: String| -> Result<usize, SceneError> {
-            match name {
-                None => Ok(0),
-                Some(n) => match materials_names(&file).iter().position(|m| m == n) {
-                    Some(k) => Ok(k),
-                    None => cx.err(span, field, format!("unknown material {n:?}")),
-                },
-            }
-        };
-    for (k, p) in file.interaction.iter().enumerate() {
-        let spec = p.get_ref();
-        let law = check_law(&LawSpec {
-            friction: spec.friction,
-            restitution: spec.restitution,
-            cohesion: spec.cohesion,
-            rolling_resistance: spec.rolling_resistance,
-        })
-        .or_else(|m| cx.err(p.span(), format!("interaction[{k}]"), m))?;
-        let a = material_index(&Some(spec.materials[0].clone()), p.span(), format!("interaction[{k}].materials"))?;
-        let b = material_index(&Some(spec.materials[1].clone()), p.span(), format!("interaction[{k}].materials"))?;
-        materials.set(a, b, law);
-    }
-    for (on, name, max) in [
-        (effects.friction, "friction", materials.max_friction()),
-        (effects.restitution, "restitution", materials.max_restitution()),
-        (effects.cohesion, "cohesion", materials.max_cohesion()),
-        (effects.rolling_resistance, "rolling_resistance", materials.max_rolling_resistance()),
-    ] {
-        if !on && max > 0.0 {
-            warnings.push(format!("{name} coefficients are given but the effect `{name}` is not named: {name} is off"));
-        }
-        if on && max == 0.0 {
-            warnings.push(format!("the effect `{name}` is named but every {name} coefficient is 0"));
-        }
-    }
-
+    let mut b = Builder { file: &file, cx: Ctx { text, origin }, warnings: Vec::new(), smallest_radius: f64::INFINITY };
+    let effects = b.effects()?;
+    let materials = b.materials(&effects)?;
     let mut world = World::new(effects, materials);
+    b.walls(&mut world)?;
+    b.bodies(&mut world)?;
+    b.smallest_radius = (0..world.bodies.len()).map(|k| world.bodies.radius_of(k)).fold(f64::INFINITY, f64::min);
+    b.generators(&mut world)?;
+    b.grains(&mut world)?;
+    if world.bodies.is_empty() {
+        return b.cx.err(0..0, "body", "the scene has no bodies (add [[body]], [[generate]] or [[grains]])");
+    }
+    b.periodic(&mut world)?;
+    let settings = b.settings(&effects)?;
+    let output = b.output()?;
+    Ok(Scene {
+        name: super::scene_name(&b.cx, file.name.as_ref(), origin, "scene")?,
+        description: file.description.clone().unwrap_or_default(),
+        world,
+        settings,
+        steps: file.time.get_ref().steps,
+        output,
+        warnings: b.warnings,
+    })
+}
 
-    // Walls.
-    for (k, w) in file.wall.iter().enumerate() {
-        let spec = w.get_ref();
-        let field = |f: &str| format!("wall[{k}].{f}");
-        let material = material_index(&spec.material, w.span(), field("material"))?;
-        let velocity = spec.velocity.map(v).unwrap_or(DVec2::ZERO);
-        let spin = spec.angular_velocity.unwrap_or(0.0);
-        if !velocity.is_finite() || !spin.is_finite() {
-            return cx.err(w.span(), field("velocity"), "must be finite");
-        }
-        if (velocity != DVec2::ZERO || spin != 0.0) && !effects.moving_walls {
-            return cx.err(w.span(), field("velocity"), "a moving wall needs the effect `moving_walls` in `effects`");
-        }
-        let shapes = [
-            spec.segment.is_some(),
-            spec.solid_box.is_some(),
-            spec.container.is_some(),
-            spec.polygon.is_some(),
-            spec.drum.is_some(),
-        ];
-        if shapes.iter().filter(|&&s| s).count() != 1 {
-            return cx.err(
-                w.span(),
-                format!("wall[{k}]"),
-                "give exactly one of segment, box, container, polygon, drum",
-            );
-        }
-        // Every wall is built as (local shapes around a centre).
-        let mut parts: Vec<(WallShape, DVec2)> = Vec::new();
-        let segment_part = |a: DVec2, b: DVec2, c: DVec2| (WallShape::Segment { a: a - c, b: b - c }, c);
-        if let Some(Exact([a, b])) = spec.segment {
-            if !finite(&[a[0], a[1], b[0], b[1]]) || v(a) == v(b) {
-                return cx.err(w.span(), field("segment"), "endpoints must be finite and distinct");
+impl Builder<'_> {
+    /// The effects named, and gravity.
+    fn effects(&mut self) -> Result<Effects, SceneError> {
+        let mut effects = Effects::default();
+        for e in &self.file.effects {
+            match *e.get_ref() {
+                Effect::Gravity => effects.gravity = Some(DVec2::new(0.0, -9.81)),
+                Effect::Friction => effects.friction = true,
+                Effect::Rotation => effects.rotation = true,
+                Effect::Restitution => effects.restitution = true,
+                Effect::Cohesion => effects.cohesion = true,
+                Effect::MovingWalls => effects.moving_walls = true,
+                Effect::RollingResistance => effects.rolling_resistance = true,
             }
-            let c = spec.center.map(v).unwrap_or((v(a) + v(b)) / 2.0);
-            parts.push(segment_part(v(a), v(b), c));
         }
-        let check_box = |b: &BoxSpec, f: &str| -> Result<(DVec2, DVec2), SceneError> {
-            if !finite(&[b.min[0], b.min[1], b.max[0], b.max[1]]) || b.min[0] >= b.max[0] || b.min[1] >= b.max[1] {
-                return cx.err(w.span(), field(f), "needs finite min < max");
+        if let Some(g) = &self.file.gravity {
+            if !finite(&g.get_ref()[..]) {
+                return self.cx.err(g.span(), "gravity", "must be finite");
             }
-            Ok((v(b.min), v(b.max)))
-        };
-        let mut polygon_vertices: Option<Vec<DVec2>> = None;
-        if let Some(b) = &spec.solid_box {
-            let (lo, hi) = check_box(b, "box")?;
-            polygon_vertices = Some(vec![lo, DVec2::new(hi.x, lo.y), hi, DVec2::new(lo.x, hi.y)]);
+            if effects.gravity.is_some() {
+                effects.gravity = Some(v(*g.get_ref()));
+            } else {
+                self.warnings.push("`gravity` is given but the effect `gravity` is not named: gravity is off".into());
+            }
         }
-        if let Some(p) = &spec.polygon {
-            polygon_vertices = Some(p.iter().map(|x| v(*x)).collect());
+
+        Ok(effects)
+    }
+
+    /// Materials, the default contact law and the per-pair interactions.
+    fn materials(&mut self, effects: &Effects) -> Result<Materials, SceneError> {
+        if self.file.material.is_empty() {
+            return self.cx.err(0..0, "material", "a scene needs at least one [[material]] (name, density)");
         }
-        if let Some(vertices) = polygon_vertices {
-            let mut tmp = crate::world::Bodies::new(true);
-            let centroid_guess = vertices.iter().copied().sum::<DVec2>() / vertices.len().max(1) as f64;
-            let rel: Vec<DVec2> = vertices.iter().map(|p| *p - centroid_guess).collect();
-            tmp.add(&BodySpec::polygon(centroid_guess, rel, 0), 1.0)
-                .or_else(|m| cx.err(w.span(), field("polygon"), m))?;
-            let centroid = tmp.position[0];
-            let c = spec.center.map(v).unwrap_or(centroid);
-            let shape = tmp.polygons.remove(0);
-            let local: Vec<DVec2> = shape.vertices.iter().map(|p| *p + centroid - c).collect();
-            let pts: Vec<_> = local.iter().map(|p| parry2d::math::Vector::new(p.x as f32, p.y as f32)).collect();
-            let parry = parry2d::shape::ConvexPolygon::from_convex_polyline(pts)
-                .ok_or(())
-                .or_else(|_| cx.err(w.span(), field("polygon"), "degenerate polygon"))?;
-            parts.push((WallShape::Polygon(PolygonShape { vertices: local, parry }), c));
-        }
-        if let Some(b) = &spec.container {
-            let (lo, hi) = check_box(b, "container")?;
-            let c = spec.center.map(v).unwrap_or((lo + hi) / 2.0);
-            let (bl, br, tl, tr) = (lo, DVec2::new(hi.x, lo.y), DVec2::new(lo.x, hi.y), hi);
-            parts.push(segment_part(tl, bl, c));
-            parts.push(segment_part(bl, br, c));
-            parts.push(segment_part(br, tr, c));
-        }
-        if let Some(d) = &spec.drum {
-            if !(finite(&d.center[..])
-                && d.radius.is_finite()
-                && d.radius > 0.0
-                && (3..=MAX_DRUM_SIDES).contains(&d.sides))
-            {
-                return cx.err(
-                    w.span(),
-                    field("drum"),
-                    format!("needs a finite centre, radius > 0 and 3 <= sides <= {MAX_DRUM_SIDES}"),
+        let mut names = Vec::new();
+        let mut density = Vec::new();
+        for (k, m) in self.file.material.iter().enumerate() {
+            let spec = m.get_ref();
+            if names.contains(&spec.name) {
+                return self.cx.err(
+                    m.span(),
+                    format!("material[{k}].name"),
+                    format!("material {:?} is defined twice", spec.name),
                 );
             }
-            let c = spec.center.map(v).unwrap_or(v(d.center));
-            let at = |k: usize| {
-                v(d.center) + d.radius * DVec2::from_angle(std::f64::consts::TAU * k as f64 / d.sides as f64)
-            };
-            for s in 0..d.sides {
-                parts.push(segment_part(at(s), at(s + 1), c));
+            if !(spec.density.is_finite() && spec.density > 0.0) {
+                return self.cx.err(
+                    m.span(),
+                    format!("material[{k}].density"),
+                    format!("{} must be finite and > 0", spec.density),
+                );
+            }
+            names.push(spec.name.clone());
+            density.push(spec.density);
+        }
+        let default_law = match &self.file.contact {
+            Some(c) => check_law(c.get_ref()).or_else(|m| self.cx.err(c.span(), "contact", m))?,
+            None => Interaction::default(),
+        };
+        let mut materials = Materials::new(names, density, default_law);
+        for (k, p) in self.file.interaction.iter().enumerate() {
+            let spec = p.get_ref();
+            let law = check_law(&LawSpec {
+                friction: spec.friction,
+                restitution: spec.restitution,
+                cohesion: spec.cohesion,
+                rolling_resistance: spec.rolling_resistance,
+            })
+            .or_else(|m| self.cx.err(p.span(), format!("interaction[{k}]"), m))?;
+            let a =
+                self.material_index(&Some(spec.materials[0].clone()), p.span(), format!("interaction[{k}].materials"))?;
+            let b =
+                self.material_index(&Some(spec.materials[1].clone()), p.span(), format!("interaction[{k}].materials"))?;
+            materials.set(a, b, law);
+        }
+        for (on, name, max) in [
+            (effects.friction, "friction", materials.max_friction()),
+            (effects.restitution, "restitution", materials.max_restitution()),
+            (effects.cohesion, "cohesion", materials.max_cohesion()),
+            (effects.rolling_resistance, "rolling_resistance", materials.max_rolling_resistance()),
+        ] {
+            if !on && max > 0.0 {
+                self.warnings
+                    .push(format!("{name} coefficients are given but the effect `{name}` is not named: {name} is off"));
+            }
+            if on && max == 0.0 {
+                self.warnings.push(format!("the effect `{name}` is named but every {name} coefficient is 0"));
             }
         }
-        for (shape, center) in parts {
-            world.walls.push(Wall { shape, center, angle: 0.0, velocity, spin, material });
+
+        Ok(materials)
+    }
+
+    /// The index of material `name` (the first material when `None`).
+    fn material_index(
+        &self,
+        name: &Option<String>,
+        span: std::ops::Range<usize>,
+        field: String,
+    ) -> Result<usize, SceneError> {
+        match name {
+            None => Ok(0),
+            Some(n) => match materials_names(self.file).iter().position(|m| m == n) {
+                Some(k) => Ok(k),
+                None => self.cx.err(span, field, format!("unknown material {n:?}")),
+            },
         }
     }
 
-    // Bodies.
-    for (k, b) in file.body.iter().enumerate() {
-        let spec = b.get_ref();
-        let field = |f: &str| format!("body[{k}].{f}");
-        let material = material_index(&spec.material, b.span(), field("material"))?;
-        let mut body = match (&spec.disk, &spec.polygon, &spec.regular) {
-            (Some(d), None, None) => BodySpec::disk(v(d.center), d.radius, material),
-            (None, Some(p), None) => {
-                BodySpec::polygon(v(p.center), p.vertices.iter().map(|x| v(*x)).collect(), material)
+    /// Every `[[wall]]`, each built as shapes around a centre.
+    fn walls(&self, world: &mut World) -> Result<(), SceneError> {
+        let effects = world.effects;
+        let mut walls = Vec::new();
+        for (k, w) in self.file.wall.iter().enumerate() {
+            let spec = w.get_ref();
+            let field = |f: &str| format!("wall[{k}].{f}");
+            let material = self.material_index(&spec.material, w.span(), field("material"))?;
+            let velocity = spec.velocity.map(v).unwrap_or(DVec2::ZERO);
+            let spin = spec.angular_velocity.unwrap_or(0.0);
+            if !velocity.is_finite() || !spin.is_finite() {
+                return self.cx.err(w.span(), field("velocity"), "must be finite");
             }
-            (None, None, Some(r)) => {
-                if r.sides < 3 || r.sides > MAX_POLYGON_SIDES {
-                    return cx.err(
-                        b.span(),
-                        field("regular.sides"),
-                        format!("{} sides: a polygon needs 3 to {MAX_POLYGON_SIDES}", r.sides),
+            if (velocity != DVec2::ZERO || spin != 0.0) && !effects.moving_walls {
+                return self.cx.err(
+                    w.span(),
+                    field("velocity"),
+                    "a moving wall needs the effect `moving_walls` in `effects`",
+                );
+            }
+            let shapes = [
+                spec.segment.is_some(),
+                spec.solid_box.is_some(),
+                spec.container.is_some(),
+                spec.polygon.is_some(),
+                spec.drum.is_some(),
+            ];
+            if shapes.iter().filter(|&&s| s).count() != 1 {
+                return self.cx.err(
+                    w.span(),
+                    format!("wall[{k}]"),
+                    "give exactly one of segment, box, container, polygon, drum",
+                );
+            }
+            // Every wall is built as (local shapes around a centre).
+            let mut parts: Vec<(WallShape, DVec2)> = Vec::new();
+            let segment_part = |a: DVec2, b: DVec2, c: DVec2| (WallShape::Segment { a: a - c, b: b - c }, c);
+            if let Some(Exact([a, b])) = spec.segment {
+                if !finite(&[a[0], a[1], b[0], b[1]]) || v(a) == v(b) {
+                    return self.cx.err(w.span(), field("segment"), "endpoints must be finite and distinct");
+                }
+                let c = spec.center.map(v).unwrap_or((v(a) + v(b)) / 2.0);
+                parts.push(segment_part(v(a), v(b), c));
+            }
+            let check_box = |b: &BoxSpec, f: &str| -> Result<(DVec2, DVec2), SceneError> {
+                if !finite(&[b.min[0], b.min[1], b.max[0], b.max[1]]) || b.min[0] >= b.max[0] || b.min[1] >= b.max[1] {
+                    return self.cx.err(w.span(), field(f), "needs finite min < max");
+                }
+                Ok((v(b.min), v(b.max)))
+            };
+            let mut polygon_vertices: Option<Vec<DVec2>> = None;
+            if let Some(b) = &spec.solid_box {
+                let (lo, hi) = check_box(b, "box")?;
+                polygon_vertices = Some(vec![lo, DVec2::new(hi.x, lo.y), hi, DVec2::new(lo.x, hi.y)]);
+            }
+            if let Some(p) = &spec.polygon {
+                polygon_vertices = Some(p.iter().map(|x| v(*x)).collect());
+            }
+            if let Some(vertices) = polygon_vertices {
+                let mut tmp = crate::world::Bodies::new(true);
+                let centroid_guess = vertices.iter().copied().sum::<DVec2>() / vertices.len().max(1) as f64;
+                let rel: Vec<DVec2> = vertices.iter().map(|p| *p - centroid_guess).collect();
+                tmp.add(&BodySpec::polygon(centroid_guess, rel, 0), 1.0)
+                    .or_else(|m| self.cx.err(w.span(), field("polygon"), m))?;
+                let centroid = tmp.position[0];
+                let c = spec.center.map(v).unwrap_or(centroid);
+                let shape = tmp.polygons.remove(0);
+                let local: Vec<DVec2> = shape.vertices.iter().map(|p| *p + centroid - c).collect();
+                let pts: Vec<_> = local.iter().map(|p| parry2d::math::Vector::new(p.x as f32, p.y as f32)).collect();
+                let parry = parry2d::shape::ConvexPolygon::from_convex_polyline(pts)
+                    .ok_or(())
+                    .or_else(|_| self.cx.err(w.span(), field("polygon"), "degenerate polygon"))?;
+                parts.push((WallShape::Polygon(PolygonShape { vertices: local, parry }), c));
+            }
+            if let Some(b) = &spec.container {
+                let (lo, hi) = check_box(b, "container")?;
+                let c = spec.center.map(v).unwrap_or((lo + hi) / 2.0);
+                let (bl, br, tl, tr) = (lo, DVec2::new(hi.x, lo.y), DVec2::new(lo.x, hi.y), hi);
+                parts.push(segment_part(tl, bl, c));
+                parts.push(segment_part(bl, br, c));
+                parts.push(segment_part(br, tr, c));
+            }
+            if let Some(d) = &spec.drum {
+                if !(finite(&d.center[..])
+                    && d.radius.is_finite()
+                    && d.radius > 0.0
+                    && (3..=MAX_DRUM_SIDES).contains(&d.sides))
+                {
+                    return self.cx.err(
+                        w.span(),
+                        field("drum"),
+                        format!("needs a finite centre, radius > 0 and 3 <= sides <= {MAX_DRUM_SIDES}"),
                     );
                 }
-                BodySpec::regular_polygon(v(r.center), r.radius, r.sides, 0.0, material)
+                let c = spec.center.map(v).unwrap_or(v(d.center));
+                let at = |k: usize| {
+                    v(d.center) + d.radius * DVec2::from_angle(std::f64::consts::TAU * k as f64 / d.sides as f64)
+                };
+                for s in 0..d.sides {
+                    parts.push(segment_part(at(s), at(s + 1), c));
+                }
             }
-            _ => return cx.err(b.span(), format!("body[{k}]"), "give exactly one of disk, polygon, regular"),
-        };
-        body.velocity = spec.velocity.map(v).unwrap_or(DVec2::ZERO);
-        body.spin = spec.spin.unwrap_or(0.0);
-        body.angle = spec.angle.or(spec.regular.as_ref().and_then(|r| r.angle)).unwrap_or(0.0);
-        body.fixed = spec.fixed.unwrap_or(false);
-        body.tag = spec.tag.unwrap_or(0);
-        body.force = spec.force.map(v).unwrap_or(DVec2::ZERO);
-        body.lock_rotation = spec.lock_rotation.unwrap_or(false);
-        body.mass = spec.mass;
-        if body.spin != 0.0 && !effects.rotation {
-            warnings.push(format!("body[{k}] has a spin but the effect `rotation` is not named: it is ignored"));
+            for (shape, center) in parts {
+                walls.push(Wall { shape, center, angle: 0.0, velocity, spin, material });
+            }
         }
-        let density = world.materials.density[material];
-        world.bodies.add(&body, density).or_else(|m| cx.err(b.span(), format!("body[{k}]"), m))?;
+
+        world.walls.extend(walls);
+        Ok(())
     }
 
-    // Generators.
-    let mut smallest_radius = f64::INFINITY;
-    for k in 0..world.bodies.len() {
-        smallest_radius = smallest_radius.min(world.bodies.radius_of(k));
+    /// Every `[[body]]`.
+    fn bodies(&mut self, world: &mut World) -> Result<(), SceneError> {
+        let effects = world.effects;
+        for (k, b) in self.file.body.iter().enumerate() {
+            let spec = b.get_ref();
+            let field = |f: &str| format!("body[{k}].{f}");
+            let material = self.material_index(&spec.material, b.span(), field("material"))?;
+            let mut body = match (&spec.disk, &spec.polygon, &spec.regular) {
+                (Some(d), None, None) => BodySpec::disk(v(d.center), d.radius, material),
+                (None, Some(p), None) => {
+                    BodySpec::polygon(v(p.center), p.vertices.iter().map(|x| v(*x)).collect(), material)
+                }
+                (None, None, Some(r)) => {
+                    if r.sides < 3 || r.sides > MAX_POLYGON_SIDES {
+                        return self.cx.err(
+                            b.span(),
+                            field("regular.sides"),
+                            format!("{} sides: a polygon needs 3 to {MAX_POLYGON_SIDES}", r.sides),
+                        );
+                    }
+                    BodySpec::regular_polygon(v(r.center), r.radius, r.sides, 0.0, material)
+                }
+                _ => return self.cx.err(b.span(), format!("body[{k}]"), "give exactly one of disk, polygon, regular"),
+            };
+            body.velocity = spec.velocity.map(v).unwrap_or(DVec2::ZERO);
+            body.spin = spec.spin.unwrap_or(0.0);
+            body.angle = spec.angle.or(spec.regular.as_ref().and_then(|r| r.angle)).unwrap_or(0.0);
+            body.fixed = spec.fixed.unwrap_or(false);
+            body.tag = spec.tag.unwrap_or(0);
+            body.force = spec.force.map(v).unwrap_or(DVec2::ZERO);
+            body.lock_rotation = spec.lock_rotation.unwrap_or(false);
+            body.mass = spec.mass;
+            if body.spin != 0.0 && !effects.rotation {
+                self.warnings
+                    .push(format!("body[{k}] has a spin but the effect `rotation` is not named: it is ignored"));
+            }
+            let density = world.materials.density[material];
+            world.bodies.add(&body, density).or_else(|m| self.cx.err(b.span(), format!("body[{k}]"), m))?;
+        }
+
+        Ok(())
     }
-    for (k, g) in file.generate.iter().enumerate() {
+
+    /// Every `[[generate]]`: grids, depositions, pyramids.
+    fn generators(&mut self, world: &mut World) -> Result<(), SceneError> {
+        for (k, g) in self.file.generate.iter().enumerate() {
+            let spec = g.get_ref();
+            let field = |f: &str| format!("generate[{k}].{f}");
+            let [r_min, r_max] = spec.radius.0;
+            if !(r_min.is_finite() && r_max.is_finite() && r_min > 0.0 && r_min <= r_max) {
+                return self.cx.err(
+                    g.span(),
+                    field("radius"),
+                    format!("[{r_min}, {r_max}] must satisfy 0 < r_min <= r_max"),
+                );
+            }
+            let (lo, hi) = (v(spec.region.min), v(spec.region.max));
+            if !(lo.is_finite() && hi.is_finite() && lo.x < hi.x && lo.y < hi.y) {
+                return self.cx.err(g.span(), field("region"), "needs finite min < max");
+            }
+            let count = match (spec.kind, spec.count, spec.base) {
+                (GenerateKind::Pyramid, _, Some(b)) if b > MAX_PYRAMID_BASE => {
+                    return self.cx.err(
+                        g.span(),
+                        field("base"),
+                        format!("{b} is more than the {MAX_PYRAMID_BASE} a scene may generate"),
+                    )
+                }
+                (_, Some(c), _) if c > MAX_GENERATED => {
+                    return self.cx.err(
+                        g.span(),
+                        field("count"),
+                        format!("{c} is more than the {MAX_GENERATED} grains a generator may make"),
+                    )
+                }
+                (GenerateKind::Pyramid, _, Some(b)) if b >= 1 => b * (b + 1) / 2,
+                (GenerateKind::Pyramid, _, _) => {
+                    return self.cx.err(g.span(), field("base"), "a pyramid needs base >= 1")
+                }
+                (_, Some(c), _) if c >= 1 => c,
+                _ => return self.cx.err(g.span(), field("count"), "needs count >= 1"),
+            };
+            let layer_materials: Vec<usize> = match (&spec.materials, &spec.material) {
+                (Some(list), _) if !list.is_empty() => list
+                    .iter()
+                    .map(|n| self.material_index(&Some(n.clone()), g.span(), field("materials")))
+                    .collect::<Result<_, _>>()?,
+                (_, m) => vec![self.material_index(m, g.span(), field("material"))?],
+            };
+            let layers = spec.layers.unwrap_or(1).max(1);
+            let seed = spec.seed.unwrap_or(k as u64);
+            let (centers, radii) = self.layout(k, g, count, seed)?;
+            let velocity = spec.velocity.map(v).unwrap_or(DVec2::ZERO);
+            let mut rng_angle = rand::rngs::SmallRng::seed_from_u64(seed ^ 0x9e37_79b9);
+            for (n, (c, r)) in centers.iter().zip(&radii).enumerate() {
+                let layer = n * layers / centers.len();
+                let material = layer_materials[layer % layer_materials.len()];
+                let mut body = match spec.sides {
+                    _ if spec.kind == GenerateKind::Pyramid => {
+                        let h = *r;
+                        let square = vec![DVec2::new(-h, -h), DVec2::new(h, -h), DVec2::new(h, h), DVec2::new(-h, h)];
+                        BodySpec::polygon(*c, square, material)
+                    }
+                    None => BodySpec::disk(*c, *r, material),
+                    Some(s) if (3..=MAX_POLYGON_SIDES).contains(&s) => {
+                        use rand::Rng;
+                        let angle = rng_angle.gen_range(0.0..std::f64::consts::TAU);
+                        BodySpec::regular_polygon(*c, *r, s, angle, material)
+                    }
+                    Some(s) => {
+                        return self.cx.err(
+                            g.span(),
+                            field("sides"),
+                            format!("{s} sides: a polygon needs 3 to {MAX_POLYGON_SIDES}"),
+                        )
+                    }
+                };
+                body.velocity = velocity;
+                body.tag = layer as u32;
+                let density = world.materials.density[material];
+                world.bodies.add(&body, density).or_else(|m| self.cx.err(g.span(), format!("generate[{k}]"), m))?;
+                self.smallest_radius = self.smallest_radius.min(*r);
+            }
+        }
+        Ok(())
+    }
+
+    /// Centres and radii of generator `k`'s `count` grains (checked sizes and region).
+    fn layout(
+        &self,
+        k: usize,
+        g: &Spanned<GenerateSpec>,
+        count: usize,
+        seed: u64,
+    ) -> Result<(Vec<DVec2>, Vec<f64>), SceneError> {
         let spec = g.get_ref();
         let field = |f: &str| format!("generate[{k}].{f}");
         let [r_min, r_max] = spec.radius.0;
-        if !(r_min.is_finite() && r_max.is_finite() && r_min > 0.0 && r_min <= r_max) {
-            return cx.err(g.span(), field("radius"), format!("[{r_min}, {r_max}] must satisfy 0 < r_min <= r_max"));
-        }
         let (lo, hi) = (v(spec.region.min), v(spec.region.max));
-        if !(lo.is_finite() && hi.is_finite() && lo.x < hi.x && lo.y < hi.y) {
-            return cx.err(g.span(), field("region"), "needs finite min < max");
-        }
-        let count = match (spec.kind, spec.count, spec.base) {
-            (GenerateKind::Pyramid, _, Some(b)) if b > MAX_PYRAMID_BASE => {
-                return cx.err(
-                    g.span(),
-                    field("base"),
-                    format!("{b} is more than the {MAX_PYRAMID_BASE} a scene may generate"),
-                )
-            }
-            (_, Some(c), _) if c > MAX_GENERATED => {
-                return cx.err(
-                    g.span(),
-                    field("count"),
-                    format!("{c} is more than the {MAX_GENERATED} grains a generator may make"),
-                )
-            }
-            (GenerateKind::Pyramid, _, Some(b)) if b >= 1 => b * (b + 1) / 2,
-            (GenerateKind::Pyramid, _, _) => return cx.err(g.span(), field("base"), "a pyramid needs base >= 1"),
-            (_, Some(c), _) if c >= 1 => c,
-            _ => return cx.err(g.span(), field("count"), "needs count >= 1"),
-        };
-        let layer_materials: Vec<usize> = match (&spec.materials, &spec.material) {
-            (Some(list), _) if !list.is_empty() => list
-                .iter()
-                .map(|n| material_index(&Some(n.clone()), g.span(), field("materials")))
-                .collect::<Result<_, _>>()?,
-            (_, m) => vec![material_index(m, g.span(), field("material"))?],
-        };
-        let layers = spec.layers.unwrap_or(1).max(1);
-        let seed = spec.seed.unwrap_or(k as u64);
-        let (centers, radii) = match spec.kind {
+        Ok(match spec.kind {
             GenerateKind::Grid => {
                 let spacing = spec.spacing.unwrap_or(0.02 * r_max);
                 generate::grid_fill(lo, hi, count, r_min, r_max, spacing, seed)
-                    .or_else(|m| cx.err(g.span(), field("count"), m))?
+                    .or_else(|m| self.cx.err(g.span(), field("count"), m))?
             }
             GenerateKind::Deposition => {
                 if spec.sides.is_some() {
-                    return cx.err(
+                    return self.cx.err(
                         g.span(),
                         field("sides"),
                         "deposition generates disks only; use kind = \"grid\" for polygons",
                     );
                 }
                 if hi.x - lo.x < 2.0 * r_max {
-                    return cx.err(g.span(), field("region"), "narrower than one grain");
+                    return self.cx.err(g.span(), field("region"), "narrower than one grain");
                 }
                 let (c, r) = deposition::deposit_disks(lo.x, hi.x, lo.y, count, r_min, r_max, seed);
                 if let Some(top) = c.iter().zip(&r).map(|(c, r)| c.y + r).reduce(f64::max) {
                     if top > hi.y {
-                        return cx.err(
+                        return self.cx.err(
                             g.span(),
                             field("region"),
                             format!("{count} grains pile up to y = {top:.4}, above the region's top {}", hi.y),
@@ -612,159 +729,143 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
                 }
                 (centers, vec![r_min; count])
             }
-        };
-        let velocity = spec.velocity.map(v).unwrap_or(DVec2::ZERO);
-        let mut rng_angle = rand::rngs::SmallRng::seed_from_u64(seed ^ 0x9e37_79b9);
-        for (n, (c, r)) in centers.iter().zip(&radii).enumerate() {
-            let layer = n * layers / centers.len();
-            let material = layer_materials[layer % layer_materials.len()];
-            let mut body = match spec.sides {
-                _ if spec.kind == GenerateKind::Pyramid => {
-                    let h = *r;
-                    let square = vec![DVec2::new(-h, -h), DVec2::new(h, -h), DVec2::new(h, h), DVec2::new(-h, h)];
-                    BodySpec::polygon(*c, square, material)
-                }
-                None => BodySpec::disk(*c, *r, material),
-                Some(s) if (3..=MAX_POLYGON_SIDES).contains(&s) => {
-                    use rand::Rng;
-                    let angle = rng_angle.gen_range(0.0..std::f64::consts::TAU);
-                    BodySpec::regular_polygon(*c, *r, s, angle, material)
-                }
-                Some(s) => {
-                    return cx.err(
-                        g.span(),
-                        field("sides"),
-                        format!("{s} sides: a polygon needs 3 to {MAX_POLYGON_SIDES}"),
-                    )
-                }
-            };
-            body.velocity = velocity;
-            body.tag = layer as u32;
-            let density = world.materials.density[material];
-            world.bodies.add(&body, density).or_else(|m| cx.err(g.span(), format!("generate[{k}]"), m))?;
-            smallest_radius = smallest_radius.min(*r);
-        }
-    }
-    for (k, g) in file.grains.iter().enumerate() {
-        let spec = g.get_ref();
-        let field = |f: &str| format!("grains[{k}].{f}");
-        let material = material_index(&spec.material, g.span(), field("material"))?;
-        let path = origin.parent().unwrap_or(Path::new(".")).join(&spec.file);
-        let rows = grains_csv::read_grains(&path, MAX_GENERATED).or_else(|m| cx.err(g.span(), field("file"), m))?;
-        let density = world.materials.density[material];
-        for (n, row) in rows.iter().enumerate() {
-            let mut body = BodySpec::disk(row.center, row.radius, material);
-            (body.velocity, body.spin, body.tag) = (row.velocity, row.spin, row.tag);
-            world
-                .bodies
-                .add(&body, density)
-                .or_else(|m| cx.err(g.span(), field("file"), format!("{}: grain {}: {m}", path.display(), n + 1)))?;
-            smallest_radius = smallest_radius.min(row.radius);
-        }
-        if rows.iter().any(|r| r.spin != 0.0) && !effects.rotation {
-            warnings.push(format!("grains[{k}] have spins but the effect `rotation` is not named: they are ignored"));
-        }
-    }
-    if world.bodies.is_empty() {
-        return cx.err(0..0, "body", "the scene has no bodies (add [[body]], [[generate]] or [[grains]])");
-    }
-    if let Some(p) = &file.periodic {
-        let [x0, x1] = p.get_ref().x;
-        let cell = Periodic::new(x0, x1).or_else(|m| cx.err(p.span(), "periodic.x", m))?;
-        // A pair must touch directly or through the boundary, never both.
-        let widest = world.bodies.bounding_radius.iter().fold(0.0f64, |m, r| m.max(2.0 * r));
-        if cell.length() < 4.0 * widest {
-            return cx.err(
-                p.span(),
-                "periodic.x",
-                format!(
-                    "the cell is {:e} m long: at least 4 of its widest bodies ({widest:e} m) must fit",
-                    cell.length()
-                ),
-            );
-        }
-        world.periodic = Some(cell);
-        world.wrap_positions();
+        })
     }
 
-    // Time, solver, detection, output.
-    let time = file.time.get_ref();
-    let solver = file.solver.as_ref().map(|s| s.get_ref());
-    let solver_span = file.solver.as_ref().map(|s| s.span()).unwrap_or(0..0);
-    let kind = match solver.and_then(|s| s.name.as_deref()) {
-        None => SolverKind::Nlgs,
-        Some(n) => SolverKind::from_name(&n.to_lowercase()).or_else(|_| {
-            let known: Vec<_> = SolverKind::ALL.iter().map(|k| k.name()).collect();
-            cx.err(solver_span.clone(), "solver.name", format!("unknown solver {n:?} (one of {})", known.join(", ")))
-        })?,
-    };
-    let mut options = SolverOptions { tol: 1e-4, max_iter: 10_000, ..SolverOptions::default() };
-    if let Some(s) = solver {
-        options.tol = s.tol.unwrap_or(options.tol);
-        options.max_iter = s.max_iter.unwrap_or(options.max_iter);
-        options.omega = s.omega.unwrap_or(1.0);
-        if let Some(c) = &s.criterion {
-            options.criterion = StopCriterion::from_name(c).or_else(|_| {
-                cx.err(
+    /// Every `[[grains]]` file.
+    fn grains(&mut self, world: &mut World) -> Result<(), SceneError> {
+        let effects = world.effects;
+        for (k, g) in self.file.grains.iter().enumerate() {
+            let spec = g.get_ref();
+            let field = |f: &str| format!("grains[{k}].{f}");
+            let material = self.material_index(&spec.material, g.span(), field("material"))?;
+            let path = self.cx.origin.parent().unwrap_or(Path::new(".")).join(&spec.file);
+            let rows =
+                grains_csv::read_grains(&path, MAX_GENERATED).or_else(|m| self.cx.err(g.span(), field("file"), m))?;
+            let density = world.materials.density[material];
+            for (n, row) in rows.iter().enumerate() {
+                let mut body = BodySpec::disk(row.center, row.radius, material);
+                (body.velocity, body.spin, body.tag) = (row.velocity, row.spin, row.tag);
+                world.bodies.add(&body, density).or_else(|m| {
+                    self.cx.err(g.span(), field("file"), format!("{}: grain {}: {m}", path.display(), n + 1))
+                })?;
+                self.smallest_radius = self.smallest_radius.min(row.radius);
+            }
+            if rows.iter().any(|r| r.spin != 0.0) && !effects.rotation {
+                self.warnings
+                    .push(format!("grains[{k}] have spins but the effect `rotation` is not named: they are ignored"));
+            }
+        }
+        Ok(())
+    }
+
+    /// The periodic cell, if any (the grains wrapped into it).
+    fn periodic(&self, world: &mut World) -> Result<(), SceneError> {
+        if let Some(p) = &self.file.periodic {
+            let [x0, x1] = p.get_ref().x;
+            let cell = Periodic::new(x0, x1).or_else(|m| self.cx.err(p.span(), "periodic.x", m))?;
+            // A pair must touch directly or through the boundary, never both.
+            let widest = world.bodies.bounding_radius.iter().fold(0.0f64, |m, r| m.max(2.0 * r));
+            if cell.length() < 4.0 * widest {
+                return self.cx.err(
+                    p.span(),
+                    "periodic.x",
+                    format!(
+                        "the cell is {:e} m long: at least 4 of its widest bodies ({widest:e} m) must fit",
+                        cell.length()
+                    ),
+                );
+            }
+            world.periodic = Some(cell);
+            world.wrap_positions();
+        }
+
+        Ok(())
+    }
+
+    /// Time step, solver and detection, checked together.
+    fn settings(&self, effects: &Effects) -> Result<StepSettings, SceneError> {
+        let time = self.file.time.get_ref();
+        let solver = self.file.solver.as_ref().map(|s| s.get_ref());
+        let solver_span = self.file.solver.as_ref().map(|s| s.span()).unwrap_or(0..0);
+        let kind = match solver.and_then(|s| s.name.as_deref()) {
+            None => SolverKind::Nlgs,
+            Some(n) => SolverKind::from_name(&n.to_lowercase()).or_else(|_| {
+                let known: Vec<_> = SolverKind::ALL.iter().map(|k| k.name()).collect();
+                self.cx.err(
                     solver_span.clone(),
-                    "solver.criterion",
-                    format!("unknown criterion {c:?} (natural, velocity, quad, maxm, qm16)"),
+                    "solver.name",
+                    format!("unknown solver {n:?} (one of {})", known.join(", ")),
                 )
-            })?;
+            })?,
+        };
+        let mut options = SolverOptions { tol: 1e-4, max_iter: 10_000, ..SolverOptions::default() };
+        if let Some(s) = solver {
+            options.tol = s.tol.unwrap_or(options.tol);
+            options.max_iter = s.max_iter.unwrap_or(options.max_iter);
+            options.omega = s.omega.unwrap_or(1.0);
+            if let Some(c) = &s.criterion {
+                options.criterion = StopCriterion::from_name(c).or_else(|_| {
+                    self.cx.err(
+                        solver_span.clone(),
+                        "solver.criterion",
+                        format!("unknown criterion {c:?} (natural, velocity, quad, maxm, qm16)"),
+                    )
+                })?;
+            }
+            if let Some(o) = &s.ordering {
+                options.ordering = Ordering::from_name(o).or_else(|_| {
+                    self.cx.err(solver_span.clone(), "solver.ordering", format!("unknown ordering {o:?}"))
+                })?;
+            }
         }
-        if let Some(o) = &s.ordering {
-            options.ordering = Ordering::from_name(o)
-                .or_else(|_| cx.err(solver_span.clone(), "solver.ordering", format!("unknown ordering {o:?}")))?;
+        let alert = match self.file.detection.as_ref().and_then(|d| d.get_ref().alert) {
+            Some(a) => a,
+            None => crate::stepping::DEFAULT_ALERT_FRACTION * self.smallest_radius,
+        };
+        let settings = StepSettings { h: time.step, theta: time.theta.unwrap_or(0.5), alert, solver: kind, options };
+        if let Err(m) = settings.validate() {
+            let span = if m.contains("alert") { self.file.detection.as_ref().map(|d| d.span()) } else { None };
+            return self.cx.err(span.unwrap_or_else(|| self.file.time.span()), "time/solver/detection", m);
         }
-    }
-    let alert = match file.detection.as_ref().and_then(|d| d.get_ref().alert) {
-        Some(a) => a,
-        None => crate::stepping::DEFAULT_ALERT_FRACTION * smallest_radius,
-    };
-    let settings = StepSettings { h: time.step, theta: time.theta.unwrap_or(0.5), alert, solver: kind, options };
-    if let Err(m) = settings.validate() {
-        let span = if m.contains("alert") { file.detection.as_ref().map(|d| d.span()) } else { None };
-        return cx.err(span.unwrap_or_else(|| file.time.span()), "time/solver/detection", m);
-    }
-    if effects.rolling_resistance {
-        if !effects.rotation {
-            let span = file.effects.iter().find(|e| *e.get_ref() == Effect::RollingResistance).map(|e| e.span());
-            return cx.err(
-                span.unwrap_or(0..0),
-                "effects",
-                "rolling_resistance needs the effect `rotation` (it resists spins)",
-            );
+        if effects.rolling_resistance {
+            if !effects.rotation {
+                let span =
+                    self.file.effects.iter().find(|e| *e.get_ref() == Effect::RollingResistance).map(|e| e.span());
+                return self.cx.err(
+                    span.unwrap_or(0..0),
+                    "effects",
+                    "rolling_resistance needs the effect `rotation` (it resists spins)",
+                );
+            }
+            if let Some(why) = crate::solvers::rolling_refusal(true, kind, settings.options.criterion) {
+                return self.cx.err(solver_span, "solver", why);
+            }
         }
-        if let Some(why) = crate::solvers::rolling_refusal(true, kind, settings.options.criterion) {
-            return cx.err(solver_span, "solver", why);
+        Ok(settings)
+    }
+
+    /// The number of steps checked, and what to write.
+    fn output(&self) -> Result<OutputSettings, SceneError> {
+        let time = self.file.time.get_ref();
+        if time.steps == 0 {
+            return self.cx.err(self.file.time.span(), "time.steps", "must be >= 1");
         }
+        if let Some(o) = self.file.output.as_ref().filter(|o| o.get_ref().every == Some(0)) {
+            return self.cx.err(o.span(), "output.every", "must be >= 1 (`vtk = false` writes no VTK)");
+        }
+        if let Some(o) = self.file.output.as_ref().filter(|o| o.get_ref().picture_step == Some(0)) {
+            return self.cx.err(o.span(), "output.picture_step", "steps count from 1");
+        }
+        let output = self.file.output.as_ref().map(|o| o.get_ref());
+        Ok(OutputSettings {
+            every: output.and_then(|o| o.every).unwrap_or(1),
+            vtk: output.and_then(|o| o.vtk).unwrap_or(false),
+            picture_step: output.and_then(|o| o.picture_step),
+            checkpoint_every: output.and_then(|o| o.checkpoint_every).unwrap_or(0),
+            wall_forces: output.and_then(|o| o.wall_forces).unwrap_or(false),
+        })
     }
-    if time.steps == 0 {
-        return cx.err(file.time.span(), "time.steps", "must be >= 1");
-    }
-    if let Some(o) = file.output.as_ref().filter(|o| o.get_ref().every == Some(0)) {
-        return cx.err(o.span(), "output.every", "must be >= 1 (`vtk = false` writes no VTK)");
-    }
-    if let Some(o) = file.output.as_ref().filter(|o| o.get_ref().picture_step == Some(0)) {
-        return cx.err(o.span(), "output.picture_step", "steps count from 1");
-    }
-    let output = file.output.as_ref().map(|o| o.get_ref());
-    let output = OutputSettings {
-        every: output.and_then(|o| o.every).unwrap_or(1),
-        vtk: output.and_then(|o| o.vtk).unwrap_or(false),
-        picture_step: output.and_then(|o| o.picture_step),
-        checkpoint_every: output.and_then(|o| o.checkpoint_every).unwrap_or(0),
-        wall_forces: output.and_then(|o| o.wall_forces).unwrap_or(false),
-    };
-    Ok(Scene {
-        name: super::scene_name(&cx, file.name.as_ref(), origin, "scene")?,
-        description: file.description.clone().unwrap_or_default(),
-        world,
-        settings,
-        steps: time.steps,
-        output,
-        warnings,
-    })
 }
 
 fn materials_names(file: &SceneFile) -> Vec<String> {
