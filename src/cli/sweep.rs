@@ -5,16 +5,15 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
-use crate::backend::{gpu_refusal, Backend};
+use crate::backend::{Backend, DeviceChoice};
 use crate::gpu::GpuContext;
 use crate::io::plots::{font_available, write_chart, Chart, Series};
-use crate::io::siconos::read_fc2d;
-use crate::problem::ContactProblem;
 use crate::scene::{self, PunchScene};
-use crate::solvers::{solve, HistoryPoint, SolverKind, SolverOptions};
-use crate::stepping::Simulation;
-use crate::structure::study::{latin_k_sweep, run, PunchProblems, StructuralSolver};
-use crate::sweep::{markdown_table, profile::profiles, run_one, Device, Run};
+use crate::solvers::{solve, SolverKind, SolverOptions};
+use crate::structure::study::{PunchProblems, StructuralSolver};
+use crate::sweep::problems::{first_step_problem, problems_of};
+use crate::sweep::structural::structural_study;
+use crate::sweep::{markdown_table, profile::profiles, work_precision, Run};
 
 #[derive(clap::Args)]
 pub struct SweepArgs {
@@ -41,42 +40,6 @@ pub struct SweepArgs {
     /// Structural scenes: LATIN's k as these multiples of mean diag(M) and of diag(M).
     #[arg(long, value_delimiter = ',', default_values_t = [1.0 / 64.0, 1.0 / 32.0, 1.0 / 16.0, 0.125, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0])]
     latin_k_factors: Vec<f64>,
-}
-
-/// The problems of a target: files, a directory, or steps of a scene (simulated on the CPU).
-fn problems_of(target: &Path, scene_steps: &[usize]) -> Result<Vec<(String, ContactProblem)>> {
-    let stem = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    if target.is_dir() {
-        let mut files: Vec<PathBuf> = std::fs::read_dir(target)
-            .with_context(|| format!("reading {}", target.display()))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|e| e == "dat"))
-            .collect();
-        files.sort();
-        if files.is_empty() {
-            bail!("{}: no .dat problem files", target.display());
-        }
-        return files.iter().map(|f| Ok((stem(f), read_fc2d(f)?))).collect();
-    }
-    if target.extension().is_some_and(|e| e == "toml") {
-        let s = scene::load(target)?;
-        let last = scene_steps.iter().copied().max().unwrap_or(1).max(1);
-        let name = s.name.clone();
-        let mut sim = Simulation::new(s.world, s.settings)?;
-        sim.keep_problems(true);
-        let mut out = Vec::new();
-        for step in 1..=last {
-            sim.step()?;
-            if scene_steps.contains(&step) {
-                match sim.last_problem() {
-                    Some(p) => out.push((format!("{name}@{step}"), p.clone())),
-                    None => eprintln!("warning: {name} step {step} has no contact"),
-                }
-            }
-        }
-        return Ok(out);
-    }
-    Ok(vec![(stem(target), read_fc2d(target)?)])
 }
 
 fn write_csv<T: serde::Serialize>(path: &Path, rows: impl IntoIterator<Item = T>) -> Result<()> {
@@ -111,13 +74,12 @@ pub fn sweep_command(a: SweepArgs) -> Result<()> {
             bail!("--profile-tol {p}: must be finite, > 0 and no finer than the finest of --tols ({tightest:e}), or every solver's profile would be empty");
         }
     }
-    let devices: Vec<Device> = a
+    let devices: Vec<DeviceChoice> = a
         .devices
         .iter()
-        .map(|d| match d.as_str() {
-            "cpu" => Ok(Device::Cpu),
-            "gpu" => Ok(Device::Gpu),
-            other => bail!("--devices: unknown device {other:?} (cpu, gpu)"),
+        .map(|d| match DeviceChoice::from_name(d) {
+            Ok(DeviceChoice::Auto) | Err(_) => bail!("--devices: unknown device {d:?} (cpu, gpu)"),
+            Ok(choice) => Ok(choice),
         })
         .collect::<Result<_>>()?;
     let solvers: Vec<StructuralSolver> =
@@ -135,7 +97,7 @@ pub fn sweep_command(a: SweepArgs) -> Result<()> {
             StructuralSolver::DualCg => bail!("dual_cg solves the dual of a structural problem: give a punch scene"),
         })
         .collect::<Result<_>>()?;
-    let gpu = if devices.contains(&Device::Gpu) {
+    let gpu = if devices.contains(&DeviceChoice::Gpu) {
         let ctx = GpuContext::new()?;
         eprintln!("gpu: {}", ctx.describe());
         Some(Backend::gpu(ctx))
@@ -143,37 +105,16 @@ pub fn sweep_command(a: SweepArgs) -> Result<()> {
         None
     };
     let cpu = Backend::cpu();
+    let backends: Vec<&Backend> = devices
+        .iter()
+        .map(|d| match (d, &gpu) {
+            (DeviceChoice::Gpu, Some(g)) => g,
+            _ => &cpu,
+        })
+        .collect();
     let problems = problems_of(&a.target, &a.scene_steps)?;
     let tightest = *tols.last().unwrap();
-    let mut runs: Vec<Run> = Vec::new();
-    for (name, p) in &problems {
-        for &solver in &kinds {
-            for &device in &devices {
-                let backend = match (device, &gpu) {
-                    (Device::Gpu, Some(g)) => g,
-                    _ => &cpu,
-                };
-                if let Some(why) =
-                    (device == Device::Gpu).then(|| gpu_refusal(solver, &SolverOptions::default())).flatten()
-                {
-                    eprintln!("{name}: {} skipped on the gpu ({why})", solver.name());
-                    continue;
-                }
-                let run = run_one(name, p, solver, backend, tightest, a.max_iter)?;
-                eprintln!(
-                    "{name} ({} contacts): {} on {}: error {:.2e} after {} its, {:.3} s ({})",
-                    p.n_contacts(),
-                    solver.name(),
-                    device.name(),
-                    run.error,
-                    run.iterations,
-                    run.seconds,
-                    run.stop_reason
-                );
-                runs.push(run);
-            }
-        }
-    }
+    let runs = work_precision(&problems, &kinds, &backends, tightest, a.max_iter, &mut |line| eprintln!("{line}"))?;
     let names: Vec<String> = problems.iter().map(|(n, _)| n.clone()).collect();
     write_sweep_outputs(&a.out, &names, &runs, &tols, a.profile_tol)?;
     eprintln!("outputs in {}", a.out.display());
@@ -195,7 +136,7 @@ fn write_sweep_outputs(
             r.history.iter().map(|h| HistoryRow {
                 problem: &r.problem,
                 solver: &r.solver,
-                device: r.device.name(),
+                device: r.device,
                 iteration: h.iteration,
                 seconds: h.seconds,
                 w_products: h.w_products,
@@ -222,7 +163,7 @@ fn write_sweep_outputs(
             .filter(|r| &r.problem == name)
             .map(|r| {
                 let pts = r.history.iter().filter(|h| h.seconds > 0.0).map(|h| (h.seconds, h.error)).collect();
-                (format!("{} {}", r.solver, r.device.name()), pts)
+                (format!("{} {}", r.solver, r.device), pts)
             })
             .collect();
         let title = format!("{name}: error vs time");
@@ -264,11 +205,11 @@ struct EnergyRow<'a> {
 fn structural_sweep(
     scene: &PunchScene,
     solvers: &[StructuralSolver],
-    devices: &[Device],
+    devices: &[DeviceChoice],
     tols: &[f64],
     a: &SweepArgs,
 ) -> Result<()> {
-    if devices.contains(&Device::Gpu) {
+    if devices.contains(&DeviceChoice::Gpu) {
         eprintln!("{}: structural problems run on the CPU only; the gpu column is skipped", scene.name);
     }
     let t = std::time::Instant::now();
@@ -281,20 +222,15 @@ fn structural_sweep(
         t.elapsed().as_secs_f64()
     );
     let tightest = *tols.last().unwrap();
-    // Every iteration is recorded: the paper's Fig. 17.1 is error against iterations.
-    let opts = SolverOptions { tol: tightest, max_iter: a.max_iter, history_every: 1, ..scene.options.clone() };
     if let Some(f) = a.latin_k_factors.iter().find(|f| !(f.is_finite() && **f > 0.0)) {
         bail!("--latin-k-factors {f}: each factor must be finite and > 0");
     }
-    let rows = latin_k_sweep(&problems, &a.latin_k_factors, tightest, a.max_iter);
-    write_csv(&a.out.join("latin_k.csv"), rows.iter())?;
-    let best_factor = |diagonal: bool| {
-        rows.iter()
-            .filter(|r| r.per_contact_diagonal == diagonal && r.converged)
-            .min_by(|x, y| x.iterations.cmp(&y.iterations).then(x.seconds.total_cmp(&y.seconds)))
-    };
+    let opts = SolverOptions { tol: tightest, max_iter: a.max_iter, ..scene.options.clone() };
+    let study =
+        structural_study(&scene.name, &problems, solvers, &a.latin_k_factors, &opts, &mut |line| eprintln!("{line}"));
+    write_csv(&a.out.join("latin_k.csv"), study.latin_k.iter())?;
     for diagonal in [false, true] {
-        match best_factor(diagonal) {
+        match study.best_latin_factor(diagonal) {
             Some(b) => eprintln!(
                 "LATIN, k = factor × {}: best factor {} ({} its to {tightest:.0e}, {:.4} s)",
                 if diagonal { "diag(M)" } else { "mean diag(M)" },
@@ -311,53 +247,8 @@ fn structural_sweep(
             (lo * hi).sqrt()
         );
     }
-    let mut solvers: Vec<(String, StructuralSolver, SolverOptions)> =
-        solvers.iter().map(|&s| (s.name().to_string(), s, opts.clone())).collect();
-    if let (Some(b), true) =
-        (best_factor(false), solvers.iter().any(|s| s.1 == StructuralSolver::Primal(SolverKind::Latin)))
-    {
-        let label = format!("latin k={}·mean", b.factor);
-        let best = SolverOptions { latin_k: b.factor, latin_k_mean: true, ..opts.clone() };
-        solvers.push((label, StructuralSolver::Primal(SolverKind::Latin), best));
-    }
-    let mut runs = Vec::new();
-    let mut energy = Vec::new();
-    for (label, solver, opts) in &solvers {
-        let r = run(&problems, *solver, opts);
-        eprintln!(
-            "{}: {label}: error {:.2e}, energy-norm error {:.2e} after {} its, {:.4} s ({})",
-            scene.name,
-            r.error(),
-            r.energy_error(),
-            r.iterations,
-            r.seconds,
-            r.stop_reason
-        );
-        let history: Vec<HistoryPoint> = r
-            .points
-            .iter()
-            .map(|p| HistoryPoint {
-                iteration: p.iteration,
-                seconds: p.seconds,
-                w_products: p.w_products,
-                error: p.error,
-            })
-            .collect();
-        runs.push(Run {
-            problem: scene.name.clone(),
-            contacts: problems.primal.n,
-            solver: label.clone(),
-            device: Device::Cpu,
-            history,
-            converged: r.converged,
-            iterations: r.iterations,
-            error: r.error(),
-            seconds: r.seconds,
-            stop_reason: r.stop_reason.clone(),
-        });
-        energy.push((label.clone(), r));
-    }
-    write_sweep_outputs(&a.out, std::slice::from_ref(&scene.name), &runs, tols, a.profile_tol)?;
+    let (runs, energy, rows) = (&study.runs, &study.energy, &study.latin_k);
+    write_sweep_outputs(&a.out, std::slice::from_ref(&scene.name), runs, tols, a.profile_tol)?;
     write_csv(
         &a.out.join("energy_convergence.csv"),
         energy.iter().flat_map(|(label, r)| {
@@ -450,23 +341,6 @@ struct FrictionRow {
     iterations: usize,
     error: f64,
     seconds: f64,
-}
-
-/// The first-step problem of `scene` with every pair's friction set to `mu`.
-fn first_step_problem(path: &Path, mu: f64) -> Result<ContactProblem> {
-    let mut s = scene::load(path)?;
-    s.world.effects.friction = true;
-    let n = s.world.materials.len();
-    for a in 0..n {
-        for b in a..n {
-            let mut law = s.world.materials.interaction(a, b);
-            law.friction = mu;
-            s.world.materials.set(a, b, law);
-        }
-    }
-    let mut sim = Simulation::new(s.world, s.settings)?;
-    let first = sim.next_problem()?; // assembled, not solved
-    first.map(|(p, _)| p).ok_or_else(|| anyhow::anyhow!("{}: the first step has no contact", path.display()))
 }
 
 pub fn friction_command(a: FrictionArgs) -> Result<()> {

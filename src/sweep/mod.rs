@@ -1,28 +1,16 @@
 //! What accuracy costs in time (notes §7.4): every solver × device on a set of problems, each
 //! solved once to the tightest tolerance while its error history (f64, the core's measure) is
 //! recorded against wall time and W-products; the time to each tolerance is read off that
-//! history. Also the Dolan–Moré performance profiles (`profile.rs`).
+//! history. Also the Dolan–Moré performance profiles (`profile.rs`), the problems a sweep runs
+//! on (`problems.rs`) and the structural study of the founding paper's punch (`structural.rs`).
 
+pub mod problems;
 pub mod profile;
+pub mod structural;
 
 use crate::backend::{Backend, BackendError};
 use crate::problem::ContactProblem;
 use crate::solvers::{HistoryPoint, SolverKind, SolverOptions};
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Device {
-    Cpu,
-    Gpu,
-}
-
-impl Device {
-    pub fn name(self) -> &'static str {
-        match self {
-            Device::Cpu => "cpu",
-            Device::Gpu => "gpu",
-        }
-    }
-}
 
 /// One solver on one device on one problem: its history and its final state.
 #[derive(Clone, Debug)]
@@ -31,7 +19,8 @@ pub struct Run {
     pub contacts: usize,
     /// The solver's name (a core solver, or `dual_cg` on a structural problem).
     pub solver: String,
-    pub device: Device,
+    /// Where it ran: `cpu` or `gpu` ([`Backend::name`]).
+    pub device: &'static str,
     pub history: Vec<HistoryPoint>,
     pub converged: bool,
     pub iterations: usize,
@@ -77,7 +66,7 @@ impl Run {
             problem: self.problem.clone(),
             contacts: self.contacts,
             solver: self.solver.clone(),
-            device: self.device.name().into(),
+            device: self.device.into(),
             tol,
             converged,
             iterations: point.iteration,
@@ -99,7 +88,7 @@ pub fn run_one(
     max_iter: usize,
 ) -> Result<Run, BackendError> {
     let opts = SolverOptions { tol, max_iter, history_every: (max_iter / 1000).max(1), ..SolverOptions::default() };
-    let device = if backend.is_gpu() { Device::Gpu } else { Device::Cpu };
+    let device = backend.name();
     let report = backend.solve(problem, solver, &opts, None)?;
     let mut history = report.history.clone();
     // The history is monotone in time; make it end on the returned state.
@@ -125,6 +114,46 @@ pub fn run_one(
     })
 }
 
+/// Every solver of `kinds` on every problem on every backend, each to `tol` with its history;
+/// a solve a backend cannot do is skipped and `say` is told why (and of each run).
+pub fn work_precision(
+    problems: &[(String, ContactProblem)],
+    kinds: &[SolverKind],
+    backends: &[&Backend],
+    tol: f64,
+    max_iter: usize,
+    say: &mut dyn FnMut(String),
+) -> Result<Vec<Run>, BackendError> {
+    let mut runs = Vec::new();
+    for (name, p) in problems {
+        for &solver in kinds {
+            for backend in backends {
+                if let Err(e) = backend.check(solver, &SolverOptions::default()) {
+                    let why = match e {
+                        BackendError::Refused(why) => why,
+                        other => other.to_string(),
+                    };
+                    say(format!("{name}: {} skipped on the {} ({why})", solver.name(), backend.name()));
+                    continue;
+                }
+                let run = run_one(name, p, solver, backend, tol, max_iter)?;
+                say(format!(
+                    "{name} ({} contacts): {} on {}: error {:.2e} after {} its, {:.3} s ({})",
+                    p.n_contacts(),
+                    solver.name(),
+                    backend.name(),
+                    run.error,
+                    run.iterations,
+                    run.seconds,
+                    run.stop_reason
+                ));
+                runs.push(run);
+            }
+        }
+    }
+    Ok(runs)
+}
+
 /// Markdown table of the time to each tolerance (– where it was not reached).
 pub fn markdown_table(runs: &[Run], tols: &[f64]) -> String {
     let mut s = String::from("| problem | solver | device |");
@@ -135,7 +164,7 @@ pub fn markdown_table(runs: &[Run], tols: &[f64]) -> String {
     s.push_str(&"---|".repeat(tols.len()));
     s.push('\n');
     for r in runs {
-        s.push_str(&format!("| {} | {} | {} |", r.problem, r.solver, r.device.name()));
+        s.push_str(&format!("| {} | {} | {} |", r.problem, r.solver, r.device));
         for &t in tols {
             let row = r.at(t);
             if row.converged {

@@ -17,7 +17,7 @@ pub fn profiles(runs: &[Run], tol: f64) -> Vec<(String, Vec<(f64, f64)>)> {
             .fold(f64::INFINITY, f64::min)
     };
     let bests: Vec<(&str, f64)> = problems.iter().map(|p| (*p, best(p))).collect();
-    let mut labels: Vec<String> = runs.iter().map(|r| format!("{} {}", r.solver, r.device.name())).collect();
+    let mut labels: Vec<String> = runs.iter().map(|r| format!("{} {}", r.solver, r.device)).collect();
     labels.sort();
     labels.dedup();
     let mut ratios_of: Vec<(String, Vec<f64>)> = labels
@@ -27,7 +27,7 @@ pub fn profiles(runs: &[Run], tol: f64) -> Vec<(String, Vec<(f64, f64)>)> {
                 .iter()
                 .map(|(p, b)| {
                     runs.iter()
-                        .find(|r| r.problem == *p && format!("{} {}", r.solver, r.device.name()) == *label)
+                        .find(|r| r.problem == *p && format!("{} {}", r.solver, r.device) == *label)
                         .map(|r| r.at(tol))
                         .filter(|row| row.converged && b.is_finite())
                         .map(|row| row.seconds.max(1e-12) / b.max(1e-12))
