@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! Where a solve runs, decided in one place: the device (CPU, or a GPU context), what it can do
 //! (solver, criterion, options), the choice `auto` makes and why, and the one `solve` that the
 //! command line, the time step, the sweeps and the benchmarks call.
@@ -29,6 +30,7 @@ pub const F32_FLOOR: f64 = 1e-5;
 pub enum DeviceChoice {
     /// A hardware GPU when there is one and it can do the solve; else the CPU (says which and why).
     Auto,
+    /// The CPU, f64.
     Cpu,
     /// A GPU: hardware, else the software adapter (a correctness tool, never fast).
     Gpu,
@@ -49,17 +51,22 @@ impl DeviceChoice {
 /// Where solves run.
 #[derive(Clone)]
 pub enum Device {
+    /// The CPU (rayon's threads), f64.
     Cpu,
+    /// A GPU context (hardware or the software adapter), f32 iterations.
     Gpu(Arc<GpuContext>),
 }
 
+/// Why a solve cannot run where it was asked to.
 #[derive(Debug, Error)]
 pub enum BackendError {
+    /// The GPU path cannot do this solve (the reason names what it lacks).
     #[error("--device gpu: {0}")]
     Refused(String),
     /// The problem needs what the solver or criterion does not offer (on any device).
     #[error("{0}")]
     Unsupported(String),
+    /// The GPU failed (no adapter, a device error).
     #[error(transparent)]
     Gpu(#[from] GpuError),
 }
@@ -170,6 +177,7 @@ impl Backend {
         }
     }
 
+    /// The device solves run on.
     pub fn device(&self) -> &Device {
         &self.device
     }
@@ -182,6 +190,7 @@ impl Backend {
         }
     }
 
+    /// Whether solves run on a GPU.
     pub fn is_gpu(&self) -> bool {
         matches!(self.device, Device::Gpu(_))
     }

@@ -6,6 +6,7 @@ use rayon::prelude::*;
 use super::Mat2;
 use crate::parallel::{parallel, CHUNK};
 
+/// An explicit `W` as a block-compressed sparse row matrix of 2×2 blocks (problem files).
 #[derive(Clone, Debug)]
 pub struct BlockSparse {
     pub(crate) row_ptr: Vec<usize>,
@@ -84,6 +85,7 @@ impl BlockSparse {
         Ok(Self::from_scalar_entries(n, entries))
     }
 
+    /// Number of contacts (block rows).
     pub fn n_contacts(&self) -> usize {
         self.row_ptr.len() - 1
     }
@@ -96,6 +98,7 @@ impl BlockSparse {
         })
     }
 
+    /// Number of stored 2×2 blocks.
     pub fn n_blocks(&self) -> usize {
         self.blocks.len()
     }
@@ -127,6 +130,7 @@ impl BlockSparse {
         }
     }
 
+    /// The diagonal block `W_aa`.
     pub fn diag_block(&self, a: usize) -> Mat2 {
         match self.diag_pos[a] {
             usize::MAX => [0.0; 4],
@@ -151,6 +155,7 @@ impl BlockSparse {
         e
     }
 
+    /// Checks indices and values: sorted columns, finite entries, a diagonal block per row.
     pub fn validate(&self) -> Result<(), String> {
         if let Some(k) = self.blocks.iter().position(|b| b.iter().any(|x| !x.is_finite())) {
             let a = self.row_ptr.partition_point(|&p| p <= k) - 1;

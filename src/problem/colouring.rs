@@ -8,16 +8,19 @@ use super::{Delassus, MatrixFree};
 /// Contacts ordered by colour, and where each colour starts in that order.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Colouring {
+    /// Every contact, colour by colour.
     pub order: Vec<u32>,
     /// `order[start[c]..start[c + 1]]` are the contacts of colour `c`.
     pub start: Vec<u32>,
 }
 
 impl Colouring {
+    /// Number of colours.
     pub fn n_colours(&self) -> usize {
         self.start.len() - 1
     }
 
+    /// The contacts of colour `c`.
     pub fn colour(&self, c: usize) -> &[u32] {
         &self.order[self.start[c] as usize..self.start[c + 1] as usize]
     }

@@ -5,7 +5,9 @@ use super::Mat2;
 /// State of one contact under the Coulomb law (Siconos/LMGC90 naming differs; we name the sign).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ContactStatus {
+    /// No impulse: the contact separates.
     Open,
+    /// Inside the cone: no relative velocity.
     Stick,
     /// `r_t = +μ r_n` (the contact slides with `u_t ≤ 0`).
     SlidePositive,

@@ -3,6 +3,7 @@
 
 use super::{BlockSparse, Mat2, MatrixFree};
 
+/// The operator `W` of a contact problem, in one of two forms.
 #[derive(Clone, Debug)]
 pub enum Delassus {
     /// `W = B M⁻¹ Bᵀ`, never assembled.
@@ -25,6 +26,7 @@ impl SweepState {
 }
 
 impl Delassus {
+    /// Number of contacts.
     pub fn n_contacts(&self) -> usize {
         match self {
             Delassus::MatrixFree(m) => m.n_contacts(),
@@ -40,6 +42,7 @@ impl Delassus {
         }
     }
 
+    /// The diagonal block `W_aa`.
     pub fn diag_block(&self, a: usize) -> Mat2 {
         match self {
             Delassus::MatrixFree(m) => m.diag_block(a),
@@ -47,6 +50,7 @@ impl Delassus {
         }
     }
 
+    /// Every diagonal block.
     pub fn diag_blocks(&self) -> Vec<Mat2> {
         match self {
             Delassus::MatrixFree(m) => m.diag_blocks().to_vec(),
@@ -54,6 +58,7 @@ impl Delassus {
         }
     }
 
+    /// The state a Gauss–Seidel sweep from `r` keeps up to date.
     pub fn sweep_state(&self, r: &[f64]) -> SweepState {
         SweepState {
             body_velocity: match self {
@@ -72,6 +77,7 @@ impl Delassus {
         }
     }
 
+    /// Records that contact `a`'s impulse changed by `dr` (keeps the sweep state consistent).
     #[inline]
     pub fn record_change(&self, a: usize, dr: [f64; 2], state: &mut SweepState) {
         if let Delassus::MatrixFree(m) = self {

@@ -14,17 +14,21 @@ use crate::parallel::{parallel, CHUNK};
 /// A rigid body's inverse mass and inverse inertia. A static body (a wall) has both zero.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Body {
+    /// 1/m (0: fixed).
     pub inv_mass: f64,
+    /// 1/I (0: fixed or not turning).
     pub inv_inertia: f64,
 }
 
 impl Body {
+    /// A moving body of this mass and inertia (inertia 0 or infinite: it does not turn).
     pub fn dynamic(mass: f64, inertia: f64) -> Self {
         Self {
             inv_mass: 1.0 / mass,
             inv_inertia: if inertia > 0.0 && inertia.is_finite() { 1.0 / inertia } else { 0.0 },
         }
     }
+    /// A fixed body (a wall, a support).
     pub fn fixed() -> Self {
         Self { inv_mass: 0.0, inv_inertia: 0.0 }
     }
@@ -35,10 +39,15 @@ impl Body {
 /// from each body's centre of mass to the contact point.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Contact {
+    /// The candidate body.
     pub i: usize,
+    /// The antagonist body, `None` for a fixed obstacle.
     pub j: Option<usize>,
+    /// Unit normal from j to i.
     pub normal: [f64; 2],
+    /// From i's centre of mass to the contact point.
     pub lever_i: [f64; 2],
+    /// From j's centre of mass to the contact point.
     pub lever_j: [f64; 2],
 }
 
@@ -47,11 +56,14 @@ pub struct Contact {
 /// tangential row of a contact is never gathered or scattered (`u_t ≡ 0`, `r_t ≡ 0`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Dofs {
+    /// Bodies turn (a spin per body, lever arms per contact).
     pub rotation: bool,
+    /// Contacts have a tangential row.
     pub friction: bool,
 }
 
 impl Dofs {
+    /// Every dof: rotation and friction.
     pub const ALL: Dofs = Dofs { rotation: true, friction: true };
 
     /// Generalised velocities per body: (v_x, v_y, ω) or (v_x, v_y).
@@ -141,6 +153,7 @@ pub(crate) type Levers = [f64; 4];
 
 pub(crate) const NO_BODY: usize = usize::MAX;
 
+/// `W = B M⁻¹ Bᵀ` kept as its bodies and contact rows, never assembled.
 #[derive(Clone, Debug)]
 pub struct MatrixFree {
     pub(crate) bodies: Vec<Body>,
@@ -324,14 +337,17 @@ impl MatrixFree {
         self.rolling_radius[a].powi(2) * (self.bodies[c.i].inv_inertia + inv_j)
     }
 
+    /// Number of contacts.
     pub fn n_contacts(&self) -> usize {
         self.rows.len()
     }
 
+    /// Number of bodies.
     pub fn n_bodies(&self) -> usize {
         self.bodies.len()
     }
 
+    /// Which dofs the operator carries.
     pub fn dofs(&self) -> Dofs {
         self.dofs
     }
@@ -534,6 +550,7 @@ impl MatrixFree {
         }
     }
 
+    /// `out = W r`: a scatter to the bodies and a gather back.
     pub fn apply(&self, r: &[f64], out: &mut [f64]) {
         let v = self.body_velocities(r);
         self.contact_velocities(&v, out);
@@ -563,6 +580,7 @@ impl MatrixFree {
         })
     }
 
+    /// The diagonal block `W_aa` of contact `a`.
     pub fn diag_block(&self, a: usize) -> Mat2 {
         let c = &self.rows[a];
         let (gi, gj) = self.lever_pair(a);

@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! The one-step 2D frictional contact problem `u = W r + q` with a Coulomb cone per contact.
 //!
 //! Vectors are interleaved per contact, normal first: `r = [r_n0, r_t0, r_n1, r_t1, …]`. With
@@ -23,18 +24,35 @@ use thiserror::Error;
 /// A 2×2 block stored row-major in the (n, t) frame: `[nn, nt, tn, tt]`.
 pub type Mat2 = [f64; 4];
 
+/// A problem refused at construction: what is wrong, by name.
 #[derive(Debug, Error, PartialEq)]
 pub enum ProblemError {
+    /// `q` has the wrong length.
     #[error("q has {got} entries, expected {expected} (2 per contact, 3 with rolling resistance)")]
-    QSize { got: usize, expected: usize },
+    QSize {
+        /// Entries given.
+        got: usize,
+        /// Entries needed.
+        expected: usize,
+    },
+    /// Rolling coefficients that do not match the operator.
     #[error("rolling resistance: {0}")]
     Rolling(String),
+    /// `mu` has the wrong length.
     #[error("mu has {got} entries, expected {expected} (1 per contact)")]
-    MuSize { got: usize, expected: usize },
+    MuSize {
+        /// Entries given.
+        got: usize,
+        /// Entries needed.
+        expected: usize,
+    },
+    /// An entry of `q` is NaN or infinite.
     #[error("q[{0}] is not finite")]
     QNotFinite(usize),
+    /// A friction coefficient is negative or not finite.
     #[error("mu[{0}] = {1} is not a friction coefficient (must be finite and >= 0)")]
     BadMu(usize, f64),
+    /// The operator is not a valid `W` (see [`Delassus::validate`]).
     #[error("W: {0}")]
     Operator(String),
 }
@@ -42,8 +60,11 @@ pub enum ProblemError {
 /// One time step's frictional contact problem.
 #[derive(Clone, Debug)]
 pub struct ContactProblem {
+    /// The Delassus operator `W`.
     pub w: Delassus,
+    /// Free velocities (2 per contact, then 1 per contact with rolling).
     pub q: Vec<f64>,
+    /// Each contact's Coulomb coefficient μ.
     pub mu: Vec<f64>,
     /// The rolling-resistance coefficient η of each contact (`|r_r| ≤ η r_n`); empty when the
     /// operator has no rolling rows.
@@ -92,6 +113,7 @@ impl ContactProblem {
         Ok(Self { w, q, mu, rolling })
     }
 
+    /// Number of contacts.
     pub fn n_contacts(&self) -> usize {
         self.mu.len()
     }

@@ -21,6 +21,7 @@ fn objective(x: &[f64], wx: &[f64], q: &[f64]) -> f64 {
     0.5 * dot(x, wx) + dot(q, x)
 }
 
+/// Solves from `gamma` (the warm start) by APGD.
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut gamma: Vec<f64>) -> SolveReport {
     let n = gamma.len();
     let every = opts.apgd_threshold_every.max(1);

@@ -11,6 +11,7 @@ use super::{SolveReport, SolverKind, SolverOptions};
 use crate::problem::cone::{project_box, status_of, ContactStatus};
 use crate::problem::{dot, ContactProblem};
 
+/// Solves from `r` by CPG, or PCPG when `preconditioned`.
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, preconditioned: bool) -> SolveReport {
     let kind = if preconditioned { SolverKind::Pcpg } else { SolverKind::Cpg };
     let nc = p.n_contacts();

@@ -20,6 +20,7 @@ pub fn jacobi_update(r: &mut [f64], u: &[f64], mu: &[f64], step: &[f64]) {
     }
 }
 
+/// Solves from `r` by projected Jacobi.
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>) -> SolveReport {
     let step: Vec<f64> = p.w.diag_blocks().iter().map(|d| opts.jacobi_omega * 2.0 / (d[0] + d[3])).collect();
     for a in 0..p.n_contacts() {

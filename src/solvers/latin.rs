@@ -16,6 +16,7 @@ use super::monitor::Monitor;
 use super::{SolveReport, SolverKind, SolverOptions};
 use crate::problem::{norm, ContactProblem};
 
+/// Solves from `r0` by LATIN.
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>) -> SolveReport {
     let nc = p.n_contacts();
     let n = 2 * nc;

@@ -6,13 +6,20 @@
 use super::StopCriterion;
 use crate::problem::Mat2;
 
+/// LMGC90's measures of the last update, each divided by tol (< 1: below tolerance).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct LmgcMeasures {
+    /// Quadratic mean of the velocity change, relative to the mean ‖W r‖ (QUAD).
     pub quad_dv: f64,
+    /// Largest velocity change, relative to the mean ‖W r‖ (MAXM).
     pub maxm_dv: f64,
+    /// Quadratic mean of the change weighted by r, relative to the mean r·W r.
     pub quad_dvr: f64,
+    /// Largest change weighted by r, relative to the mean r·W r.
     pub maxm_dvr: f64,
+    /// Mean of r·Δv relative to Σ r·W r.
     pub mean_dvor: f64,
+    /// Contacts with a non-zero impulse.
     pub active: usize,
 }
 
@@ -59,6 +66,7 @@ impl LmgcMeasures {
         }
     }
 
+    /// Whether `criterion` holds (the natural and velocity criteria never hold here).
     pub fn satisfied(&self, criterion: StopCriterion) -> bool {
         let quad = self.mean_dvor.abs() < 1.0 && self.quad_dv < 1.0 && self.quad_dvr < 1.0;
         match criterion {

@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! CPU reference solvers (f64) of the one-step frictional contact problem.
 //!
 //! | solver | file | idea |
@@ -31,15 +32,22 @@ use crate::problem::ContactProblem;
 use serde::Serialize;
 use std::fmt;
 
+/// The solvers of the one solver interface ([`solve`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum SolverKind {
+    /// Nonlinear Gauss–Seidel with the exact single-contact solve.
     Nlgs,
+    /// Conjugate projected gradient (Renouf & Alart).
     Cpg,
+    /// CPG preconditioned by the diagonal blocks.
     Pcpg,
+    /// LATIN: local and global stages with a search direction k.
     Latin,
+    /// Projected Jacobi with a per-contact step.
     Jacobi,
+    /// Accelerated projected gradient with restarts.
     Apgd,
     /// Semismooth Newton (Alart–Curnier), NLGS sweeps when its line search fails.
     Newton,
@@ -48,6 +56,7 @@ pub enum SolverKind {
 }
 
 impl SolverKind {
+    /// Every solver, in the order reports list them.
     pub const ALL: [SolverKind; 8] = [
         SolverKind::Nlgs,
         SolverKind::Cpg,
@@ -59,6 +68,7 @@ impl SolverKind {
         SolverKind::NlgsNewton,
     ];
 
+    /// The name the command line and scene files use.
     pub fn name(self) -> &'static str {
         match self {
             SolverKind::Nlgs => "nlgs",
@@ -94,7 +104,9 @@ impl fmt::Display for SolverKind {
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Ordering {
+    /// Contacts in index order.
     Forward,
+    /// Contacts in reverse index order.
     Backward,
     /// Forward then backward (symmetric Gauss–Seidel).
     Symmetric,
@@ -103,8 +115,10 @@ pub enum Ordering {
 }
 
 impl Ordering {
+    /// Every ordering.
     pub const ALL: [Ordering; 4] = [Ordering::Forward, Ordering::Backward, Ordering::Symmetric, Ordering::Shuffled];
 
+    /// The name the command line and scene files use.
     pub fn name(self) -> &'static str {
         match self {
             Ordering::Forward => "forward",
@@ -141,6 +155,7 @@ pub enum StopCriterion {
 }
 
 impl StopCriterion {
+    /// Every criterion.
     pub const ALL: [StopCriterion; 5] = [
         StopCriterion::Natural,
         StopCriterion::Quad,
@@ -149,6 +164,7 @@ impl StopCriterion {
         StopCriterion::Velocity,
     ];
 
+    /// The name the command line and scene files use.
     pub fn name(self) -> &'static str {
         match self {
             StopCriterion::Natural => "natural",
@@ -173,14 +189,20 @@ fn by_name<T: Copy>(all: &[T], name: fn(T) -> &'static str, wanted: &str, what: 
     })
 }
 
+/// What every solver is asked: tolerance, budget, stopping test and the options some solvers read.
 #[derive(Clone, Debug, Serialize)]
 pub struct SolverOptions {
+    /// Stop when the judged error is at most this.
     pub tol: f64,
+    /// Iterations (sweeps) allowed.
     pub max_iter: usize,
+    /// Which measure judges convergence.
     pub criterion: StopCriterion,
     /// NLGS relaxation ω (1 = plain Gauss–Seidel).
     pub omega: f64,
+    /// NLGS: the order contacts are visited in.
     pub ordering: Ordering,
+    /// NLGS: the seed of the shuffled ordering.
     pub seed: u64,
     /// Projected Jacobi relaxation (step = ω / mean diagonal of the contact block).
     pub jacobi_omega: f64,
@@ -221,8 +243,11 @@ impl Default for SolverOptions {
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("{name} {value}: {rule}")]
 pub struct OptionError {
+    /// The option, as the command line names it.
     pub name: &'static str,
+    /// The value given.
     pub value: String,
+    /// What it must satisfy.
     pub rule: &'static str,
 }
 
@@ -249,21 +274,32 @@ impl SolverOptions {
 /// One point of the error history.
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct HistoryPoint {
+    /// Iterations done.
     pub iteration: usize,
+    /// Seconds of solve time.
     pub seconds: f64,
+    /// Operator products done.
     pub w_products: usize,
+    /// The f64 error of the iterate then.
     pub error: f64,
 }
 
 /// What every solve returns. `error` is always the f64 natural-map error of the returned `r`.
 #[derive(Clone, Debug, Serialize)]
 pub struct SolveReport {
+    /// The solver that ran.
     pub solver: SolverKind,
+    /// Whether the returned `r` meets the tolerance (by the criterion asked for).
     pub converged: bool,
+    /// Iterations done.
     pub iterations: usize,
+    /// The f64 natural-map error of the returned `r`.
     pub error: f64,
+    /// Solve time (s).
     pub seconds: f64,
+    /// Operator products done.
     pub w_products: usize,
+    /// The error at the checks (every `history_every` iterations when asked).
     pub history: Vec<HistoryPoint>,
     /// Why the solve stopped.
     pub stop: StopReason,
@@ -274,8 +310,11 @@ pub struct SolveReport {
     pub parts: Vec<SolvePart>,
     /// GPU dispatches recorded and bytes moved between CPU and GPU by this solve (0 on the CPU).
     pub gpu_dispatches: u64,
+    /// Bytes moved between CPU and GPU.
     pub gpu_bytes: u64,
+    /// The impulses.
     pub r: Vec<f64>,
+    /// The velocities `u = W r + q` of the returned impulses.
     pub u: Vec<f64>,
     /// The iterates at the history points, when `keep_iterates` was asked for.
     #[serde(skip)]
@@ -287,10 +326,13 @@ pub struct SolveReport {
 pub struct SolvePart {
     /// `gpu` (f32) or `cpu` (f64).
     pub device: String,
+    /// Iterations of this part.
     pub iterations: usize,
+    /// Its time (s).
     pub seconds: f64,
     /// The f64 error when this part handed over (or finished).
     pub error: f64,
+    /// Why this part stopped.
     pub stop: StopReason,
 }
 

@@ -18,12 +18,14 @@ use crate::problem::residual::{problem_error, velocity_error_rolling};
 use crate::problem::{ContactProblem, Mat2};
 use std::time::{Duration, Instant};
 
+/// The bookkeeping of one solve (see the module's description).
 pub struct Monitor<'a> {
     problem: &'a ContactProblem,
     opts: &'a SolverOptions,
     kind: SolverKind,
     start: Instant,
     excluded: Duration,
+    /// Operator products so far.
     pub w_products: usize,
     iteration: usize,
     r_prev: Vec<f64>,
@@ -45,6 +47,7 @@ pub struct Monitor<'a> {
 }
 
 impl<'a> Monitor<'a> {
+    /// Starts watching a solve of `problem` from `r0`.
     pub fn new(problem: &'a ContactProblem, opts: &'a SolverOptions, kind: SolverKind, r0: &[f64]) -> Self {
         let diag = (opts.criterion != StopCriterion::Natural).then(|| problem.w.diag_blocks());
         Self {
@@ -75,10 +78,12 @@ impl<'a> Monitor<'a> {
         self.iteration += k;
     }
 
+    /// Iterations so far.
     pub fn iteration(&self) -> usize {
         self.iteration
     }
 
+    /// Solve time so far (s), excluded work (kept iterates, uncounted checks) left out.
     pub fn elapsed(&self) -> f64 {
         (self.start.elapsed() - self.excluded).as_secs_f64()
     }

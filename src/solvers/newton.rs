@@ -173,6 +173,7 @@ fn gmres(
     products
 }
 
+/// Solves from `r` by semismooth Newton on the Alart–Curnier function.
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveReport {
     let mut monitor = Monitor::new(p, opts, SolverKind::Newton, &r);
     let nc = p.n_contacts();

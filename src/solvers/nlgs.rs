@@ -30,6 +30,7 @@ use rand::{rngs::SmallRng, seq::SliceRandom, SeedableRng};
 /// Contacts per task in a threaded colour.
 const MIN_TASK: usize = 256;
 
+/// Solves from `r` by NLGS (colour by colour on threads for a large matrix-free problem).
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveReport {
     match &p.w {
         Delassus::MatrixFree(op) if opts.ordering == Ordering::Forward && parallel(p.n_contacts()) => {

@@ -21,6 +21,7 @@ pub enum StopReason {
 }
 
 impl StopReason {
+    /// The name reports use.
     pub fn name(self) -> &'static str {
         match self {
             StopReason::Converged => "converged",
@@ -75,6 +76,7 @@ pub struct StallWatch {
 }
 
 impl StallWatch {
+    /// Watches errors from `initial_error`.
     pub fn new(initial_error: f64) -> Self {
         Self { mark: initial_error, improved_at: 0 }
     }

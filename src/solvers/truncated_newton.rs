@@ -140,6 +140,7 @@ enum Correction {
     MatrixFree(Box<ConjugateGradient>),
 }
 
+/// Solves from `r` by truncated nonsmooth Newton: an NLGS sweep, then a Newton correction of the Tresca problem it defines (direct factorisation for small problems, CG beyond).
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveReport {
     solve_with(p, opts, r, p.n_contacts() <= DIRECT_LIMIT)
 }

@@ -17,14 +17,21 @@ pub struct Checkpoint {
     /// The scene's name and a fingerprint of its file (`io::checkpoint::fingerprint`), set by
     /// whoever knows the file.
     pub scene: String,
+    /// See [`Self::scene`].
     pub scene_fingerprint: String,
+    /// Steps done when it was taken.
     pub steps_done: usize,
+    /// Simulated time then (s).
     pub time: f64,
+    /// Body positions.
     pub position: Vec<[f64; 2]>,
+    /// Body velocities.
     pub velocity: Vec<[f64; 2]>,
     /// Empty without the effect rotation.
     pub angle: Vec<f64>,
+    /// Body spins (empty without rotation).
     pub spin: Vec<f64>,
+    /// Each wall's motion state.
     pub walls: Vec<WallState>,
     /// Last step's contacts, sorted by key, with impulse and colour.
     pub contacts: Vec<CarriedContact>,
@@ -32,13 +39,19 @@ pub struct Checkpoint {
     pub moving: Option<Vec<bool>>,
 }
 
+/// The checkpoint format this version writes and reads.
 pub const CHECKPOINT_FORMAT: u32 = 1;
 
+/// A wall's motion state.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct WallState {
+    /// Centre of the wall frame.
     pub center: [f64; 2],
+    /// Orientation.
     pub angle: f64,
+    /// Velocity.
     pub velocity: [f64; 2],
+    /// Spin.
     pub spin: f64,
 }
 
@@ -46,16 +59,22 @@ pub struct WallState {
 /// feature, impulse and, when last step's solve coloured the graph, colour.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CarriedContact {
+    /// The candidate body.
     pub body: usize,
+    /// The antagonist, when a body.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub other_body: Option<usize>,
+    /// The antagonist, when a wall.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub other_wall: Option<usize>,
+    /// Which feature pair of the two shapes (detection's key).
     pub feature: u64,
+    /// Normal and tangential impulse.
     pub impulse: [f64; 2],
     /// The rolling impulse (rolling resistance; absent when zero).
     #[serde(skip_serializing_if = "is_zero", default)]
     pub rolling: f64,
+    /// The colour last step's solve gave it.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub colour: Option<u32>,
 }

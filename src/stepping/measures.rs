@@ -20,14 +20,20 @@ use serde::Serialize;
 use super::Simulation;
 use crate::detection::Antagonist;
 
+/// The granular measures of one step (definitions in [`Simulation::measures`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct Measures {
+    /// Grain area over the area the grains occupy (container or cell, up to the top grain).
     pub packing_fraction: f64,
+    /// Mean active contacts per grain, rattlers excluded.
     pub coordination: f64,
     /// Grains with fewer than 2 active contacts.
     pub rattlers: usize,
+    /// Mean stress σxx (Pa·m in 2D).
     pub stress_xx: f64,
+    /// Mean stress σyy.
     pub stress_yy: f64,
+    /// Mean stress σxy.
     pub stress_xy: f64,
 }
 
@@ -98,7 +104,9 @@ impl Simulation {
 /// wall's centre (counter-clockwise positive).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct WallLoad {
+    /// Mean force on the wall (N).
     pub force: [f64; 2],
+    /// Its moment about the wall's centre (N·m).
     pub moment: f64,
 }
 

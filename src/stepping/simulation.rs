@@ -22,7 +22,9 @@ pub struct StepSettings {
     pub theta: f64,
     /// Pairs closer than this become contacts (absolute length).
     pub alert: f64,
+    /// The solver of every step.
     pub solver: SolverKind,
+    /// Its options (tolerance, budget, criterion).
     pub options: SolverOptions,
 }
 
@@ -46,6 +48,7 @@ impl StepSettings {
         }
     }
 
+    /// Checks h, θ, the alert distance and the solver options.
     pub fn validate(&self) -> Result<(), String> {
         if !(self.h.is_finite() && self.h > 0.0) {
             return Err(format!("time step {} must be finite and > 0", self.h));
@@ -63,8 +66,11 @@ impl StepSettings {
 /// A contact of the last step with its impulse (normal, tangential) and status.
 #[derive(Clone, Copy, Debug)]
 pub struct ContactState {
+    /// Where and what: bodies, point, normal, gap.
     pub contact: DetectedContact,
+    /// Normal and tangential impulse over the step.
     pub impulse: [f64; 2],
+    /// Open, stick or slide.
     pub status: ContactStatus,
 }
 
@@ -92,19 +98,27 @@ impl ContactState {
 /// What one step did.
 #[derive(Clone, Debug, Serialize)]
 pub struct StepReport {
+    /// Index of the step (from 1).
     pub step: usize,
+    /// Time at its end (s).
     pub time: f64,
+    /// Contacts detected.
     pub contacts: usize,
     /// Contacts whose impulse came from last step.
     pub warm_started: usize,
+    /// Solver iterations.
     pub iterations: usize,
+    /// The solve's f64 error.
     pub error: f64,
+    /// Whether the solve met its tolerance.
     pub converged: bool,
     /// Why the step's solve stopped (`converged` when there was nothing to solve).
     pub stop: StopReason,
+    /// Why the solve stopped, in words.
     pub stop_reason: String,
     /// GPU dispatches and bytes moved CPU ↔ GPU by the step's solve (0 on the CPU).
     pub gpu_dispatches: u64,
+    /// Bytes moved between CPU and GPU.
     pub gpu_bytes: u64,
     /// Contacts that detection at the start of the step missed and found overlapping at its
     /// end (a grain kicked farther than its reach); the projection separates them.
@@ -114,53 +128,100 @@ pub struct StepReport {
     pub projected: usize,
     /// Largest overlap at the end of the step (absolute length).
     pub max_penetration: f64,
+    /// Kinetic energy at the end of the step (J).
     pub kinetic_energy: f64,
+    /// Potential energy in gravity at the end of the step (J).
     pub potential_energy: f64,
     /// Wall time of the whole step, and of its detection and solve parts.
     pub seconds: f64,
+    /// Detection time (s).
     pub detection_seconds: f64,
+    /// Solve time (s).
     pub solve_seconds: f64,
 }
 
+/// A step or a setting refused; the simulation keeps its last good state.
 #[derive(Debug, Error)]
 pub enum StepError {
+    /// Settings that cannot run (time step, θ, solver options, effects).
     #[error("invalid settings: {0}")]
     Settings(String),
+    /// A world this time step cannot integrate.
     #[error("the scene cannot be integrated: {0}")]
     Unintegrable(String),
     /// The step's new state was not finite or ran away; the step was undone, so the
     /// simulation holds the last good state.
     #[error("step {step}: {message} (the state of step {} is kept)", step - 1)]
-    Diverged { step: usize, message: String },
+    Diverged {
+        /// The step undone.
+        step: usize,
+        /// What ran away.
+        message: String,
+    },
+    /// The step's contact problem could not be built.
     #[error("step {step}: the contact problem is invalid: {message}")]
-    Problem { step: usize, message: String },
+    Problem {
+        /// The step.
+        step: usize,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// The device failed or refused the solve.
     #[error("step {step}: {message}")]
-    Device { step: usize, message: String },
+    Device {
+        /// The step.
+        step: usize,
+        /// The device's words.
+        message: String,
+    },
 }
 
 /// A host's request about a body or a wall that cannot be met.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum BodyError {
+    /// No such body.
     #[error("body {body} does not exist (the simulation has {count} bodies)")]
-    NoBody { body: usize, count: usize },
+    NoBody {
+        /// The index asked for.
+        body: usize,
+        /// Bodies there are.
+        count: usize,
+    },
+    /// No material of this index.
     #[error("material {0} does not exist")]
     NoMaterial(usize),
+    /// No material of this name.
     #[error("material {0:?} does not exist")]
     NoMaterialNamed(String),
+    /// A value that is NaN or infinite.
     #[error("{what} of body {body} must be finite, got {value}")]
-    NotFinite { body: usize, what: &'static str, value: String },
+    NotFinite {
+        /// The body.
+        body: usize,
+        /// Which quantity.
+        what: &'static str,
+        /// The value given.
+        value: String,
+    },
+    /// The body is fixed.
     #[error("body {0} is fixed: it has no velocity to set and takes no force")]
     Fixed(usize),
+    /// The world has no rotation.
     #[error("the world was built without the effect rotation: body {0} has no spin")]
     NoRotation(usize),
+    /// A moving wall without the effect moving_walls.
     #[error("a wall with a velocity needs the effect moving_walls")]
     MovingWall,
+    /// Anything else, in words.
     #[error("{0}")]
     Invalid(String),
 }
 
+/// A world stepped by Moreau–Jean: the state, what one step hands to the next, and where solves run.
 pub struct Simulation {
+    /// Bodies, walls, materials, effects.
     pub world: World,
+    /// Time step, θ, alert distance, solver.
     pub settings: StepSettings,
     pub(super) time: f64,
     pub(super) step_index: usize,
@@ -184,6 +245,7 @@ pub struct Simulation {
 }
 
 impl Simulation {
+    /// A simulation of `world` at time 0; refuses settings that cannot run.
     pub fn new(world: World, settings: StepSettings) -> Result<Self, StepError> {
         settings.validate().map_err(StepError::Settings)?;
         let rolling = world.effects.rolling_resistance;
@@ -287,6 +349,7 @@ impl Simulation {
         self.world.bodies.add(spec, density).map_err(BodyError::Invalid)
     }
 
+    /// Adds a wall; returns its index.
     pub fn add_wall(&mut self, wall: Wall) -> Result<usize, BodyError> {
         if wall.material >= self.world.materials.len() {
             return Err(BodyError::NoMaterial(wall.material));
@@ -403,6 +466,7 @@ impl Simulation {
         }
     }
 
+    /// Simulated time (s).
     pub fn time(&self) -> f64 {
         self.time
     }

@@ -50,7 +50,7 @@ pub(crate) fn key_without_body(key: Key, removed: usize) -> Option<Key> {
 }
 
 impl WarmStart {
-    /// Forgets the contacts of body `k` and renumbers the rest as [`key_without_body`] does; the
+    /// Forgets the contacts of body `k` and renumbers the rest as `key_without_body` does; the
     /// colours are dropped (the next colouring is built afresh).
     pub fn forget_body(&mut self, k: usize) {
         self.entries = std::mem::take(&mut self.entries)
@@ -132,10 +132,12 @@ impl WarmStart {
         Self { entries, colours }
     }
 
+    /// Contacts remembered.
     pub fn len(&self) -> usize {
         self.entries.len()
     }
 
+    /// Whether none is remembered.
     pub fn is_empty(&self) -> bool {
         self.entries.is_empty()
     }

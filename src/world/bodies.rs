@@ -7,13 +7,18 @@ use parry2d::shape::ConvexPolygon;
 /// f32 parry2d copy used by the narrow phase.
 #[derive(Clone, Debug)]
 pub struct PolygonShape {
+    /// Vertices in the body frame, counter-clockwise, centred on the centroid.
     pub vertices: Vec<DVec2>,
+    /// The same polygon for parry2d's queries (f32).
     pub parry: ConvexPolygon,
 }
 
+/// A body's shape in its own frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum BodyShape {
+    /// A disk.
     Disk {
+        /// Its radius (m).
         radius: f64,
     },
     /// Index into [`Bodies::polygons`].
@@ -23,11 +28,17 @@ pub enum BodyShape {
 /// What a host code or a scene gives to create a body.
 #[derive(Clone, Debug)]
 pub struct BodySpec {
+    /// Disk or polygon.
     pub shape: SpecShape,
+    /// Centre of mass (m).
     pub center: DVec2,
+    /// Orientation (rad).
     pub angle: f64,
+    /// Initial velocity (m/s).
     pub velocity: DVec2,
+    /// Initial spin (rad/s; kept only with the effect rotation).
     pub spin: f64,
+    /// Index of its material.
     pub material: usize,
     /// A fixed body never moves (infinite mass).
     pub fixed: bool,
@@ -43,18 +54,23 @@ pub struct BodySpec {
     pub mass: Option<f64>,
 }
 
+/// The shape a body is asked for with.
 #[derive(Clone, Debug)]
 pub enum SpecShape {
+    /// A disk.
     Disk {
+        /// Its radius (m).
         radius: f64,
     },
     /// Vertices relative to `center`, any order (their convex hull is used).
     Polygon {
+        /// Vertices relative to the given centre (recentred on the centroid when added).
         vertices: Vec<DVec2>,
     },
 }
 
 impl BodySpec {
+    /// A disk at `center`, at rest, of `material`.
     pub fn disk(center: DVec2, radius: f64, material: usize) -> Self {
         Self {
             shape: SpecShape::Disk { radius },
@@ -71,6 +87,7 @@ impl BodySpec {
         }
     }
 
+    /// A convex polygon, vertices relative to `center`, at rest.
     pub fn polygon(center: DVec2, vertices: Vec<DVec2>, material: usize) -> Self {
         Self { shape: SpecShape::Polygon { vertices }, ..Self::disk(center, 0.0, material) }
     }
@@ -87,12 +104,17 @@ impl BodySpec {
     }
 }
 
+/// Every body of a world as parallel arrays (index = body id).
 #[derive(Clone, Debug)]
 pub struct Bodies {
     rotation: bool,
+    /// Each body's shape (a polygon's vertices in [`Self::polygons`]).
     pub shape: Vec<BodyShape>,
+    /// The polygon shapes, referred to from [`Self::shape`].
     pub polygons: Vec<PolygonShape>,
+    /// Centres of mass (m).
     pub position: Vec<DVec2>,
+    /// Velocities (m/s).
     pub velocity: Vec<DVec2>,
     /// Empty without rotation.
     pub angle: Vec<f64>,
@@ -100,13 +122,17 @@ pub struct Bodies {
     pub spin: Vec<f64>,
     /// 0 for fixed bodies.
     pub mass: Vec<f64>,
+    /// 1/m, 0 for fixed bodies.
     pub inv_mass: Vec<f64>,
     /// Empty without rotation.
     pub inertia: Vec<f64>,
     /// Empty without rotation.
     pub inv_inertia: Vec<f64>,
+    /// Radius of the smallest circle about the centre that holds the body (detection, framing).
     pub bounding_radius: Vec<f64>,
+    /// Material index.
     pub material: Vec<u16>,
+    /// A user label (layers of a deposit), carried to the outputs.
     pub tag: Vec<u32>,
     /// Constant forces (N) applied at every step ([`BodySpec::force`]); empty while no body has
     /// one, so that scenes without pistons carry nothing.
@@ -128,6 +154,7 @@ fn polygon_area_properties(v: &[DVec2]) -> (f64, DVec2, f64) {
 }
 
 impl Bodies {
+    /// No bodies; `rotation` decides whether angles and spins are stored.
     pub fn new(rotation: bool) -> Self {
         Self {
             rotation,
@@ -170,14 +197,17 @@ impl Bodies {
         }
     }
 
+    /// Number of bodies.
     pub fn len(&self) -> usize {
         self.position.len()
     }
 
+    /// Whether there is no body.
     pub fn is_empty(&self) -> bool {
         self.position.is_empty()
     }
 
+    /// Whether bodies carry an angle and a spin.
     pub fn has_rotation(&self) -> bool {
         self.rotation
     }
@@ -284,6 +314,7 @@ impl Bodies {
         Ok(self.len() - 1)
     }
 
+    /// Body `k`'s angle (0 without rotation).
     #[inline]
     pub fn angle_of(&self, k: usize) -> f64 {
         if self.rotation {
@@ -293,6 +324,7 @@ impl Bodies {
         }
     }
 
+    /// Body `k`'s spin (0 without rotation).
     #[inline]
     pub fn spin_of(&self, k: usize) -> f64 {
         if self.rotation {
@@ -321,6 +353,7 @@ impl Bodies {
         }
     }
 
+    /// Kinetic energy of translation and rotation (J).
     pub fn kinetic_energy(&self) -> f64 {
         let mut e: f64 = (0..self.len()).map(|k| 0.5 * self.mass[k] * self.velocity[k].length_squared()).sum();
         if self.rotation {
@@ -329,10 +362,12 @@ impl Bodies {
         e
     }
 
+    /// Potential energy in `gravity`, relative to y = 0 (J).
     pub fn potential_energy(&self, gravity: DVec2) -> f64 {
         (0..self.len()).map(|k| -self.mass[k] * gravity.dot(self.position[k])).sum()
     }
 
+    /// Mean diameter of the moving bodies (m), the scale penetrations are reported in.
     pub fn mean_diameter(&self) -> f64 {
         let dynamic: Vec<f64> =
             (0..self.len()).filter(|&k| self.inv_mass[k] > 0.0).map(|k| self.radius_of(k)).collect();

@@ -3,19 +3,28 @@
 use glam::DVec2;
 use serde::Deserialize;
 
+/// An effect a scene may name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Effect {
+    /// Gravity on every moving body.
     Gravity,
+    /// Coulomb friction: a tangential row per contact.
     Friction,
+    /// Bodies turn: angles, spins, inertia and lever arms.
     Rotation,
+    /// Newton restitution at impacts.
     Restitution,
+    /// Cohesion: a shifted Coulomb cone.
     Cohesion,
+    /// Rolling resistance: a rolling unknown per contact.
     RollingResistance,
+    /// Walls with a prescribed velocity or spin.
     MovingWalls,
 }
 
 impl Effect {
+    /// The name scenes use for it.
     pub fn name(self) -> &'static str {
         match self {
             Effect::Gravity => "gravity",

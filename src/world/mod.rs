@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! The simulated system: bodies (disks, convex polygons), walls, materials and the effects a
 //! scene switches on. Stored as flat arrays (structure of arrays): per-body data that an effect
 //! needs (angles and spins for rotation, pair tables for friction…) exists only when it is on.
@@ -19,15 +20,20 @@ use glam::DVec2;
 /// Everything a time step reads and updates.
 #[derive(Clone, Debug)]
 pub struct World {
+    /// The switches every stage reads.
     pub effects: Effects,
+    /// Every body, in structure-of-arrays form.
     pub bodies: Bodies,
+    /// Every wall (fixed or with a prescribed motion).
     pub walls: Vec<Wall>,
+    /// Densities and the contact law of each pair of materials.
     pub materials: Materials,
     /// A periodic cell along x, if any.
     pub periodic: Option<Periodic>,
 }
 
 impl World {
+    /// An empty world: bodies and walls are added afterwards.
     pub fn new(effects: Effects, materials: Materials) -> Self {
         Self { bodies: Bodies::new(effects.rotation), walls: Vec::new(), materials, effects, periodic: None }
     }

@@ -5,7 +5,9 @@
 /// The cell `[x0, x1)` along x; y is unbounded.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Periodic {
+    /// Left end of the cell (m).
     pub x0: f64,
+    /// Right end of the cell (m).
     pub x1: f64,
 }
 
@@ -18,6 +20,7 @@ impl Periodic {
         Ok(Self { x0, x1 })
     }
 
+    /// The cell's length x1 − x0.
     pub fn length(&self) -> f64 {
         self.x1 - self.x0
     }

@@ -6,23 +6,34 @@ use glam::DVec2;
 
 use super::PolygonShape;
 
+/// A wall's geometry in its own frame.
 #[derive(Clone, Debug)]
 pub enum WallShape {
     /// A two-sided segment, endpoints in the wall frame.
     Segment {
+        /// First endpoint.
         a: DVec2,
+        /// Second endpoint.
         b: DVec2,
     },
+    /// A convex polygon (solid).
     Polygon(PolygonShape),
 }
 
+/// A fixed or driven obstacle: its shape moves with its centre.
 #[derive(Clone, Debug)]
 pub struct Wall {
+    /// Geometry in the wall frame.
     pub shape: WallShape,
+    /// Centre of the wall frame (m); rotations turn about it.
     pub center: DVec2,
+    /// Orientation of the wall frame (rad).
     pub angle: f64,
+    /// Prescribed velocity (m/s; needs the effect moving_walls).
     pub velocity: DVec2,
+    /// Prescribed spin about the centre (rad/s).
     pub spin: f64,
+    /// Material index.
     pub material: usize,
 }
 
@@ -44,6 +55,7 @@ impl WallShape {
 }
 
 impl Wall {
+    /// A fixed segment from `a` to `b`.
     pub fn segment(a: DVec2, b: DVec2, material: usize) -> Self {
         let c = (a + b) / 2.0;
         Self {
@@ -76,6 +88,7 @@ impl Wall {
         self.velocity + self.spin * (x - self.center).perp()
     }
 
+    /// Whether the wall has a velocity or a spin.
     pub fn is_moving(&self) -> bool {
         self.velocity != DVec2::ZERO || self.spin != 0.0
     }
