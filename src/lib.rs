@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! moreau — 2D granular contact dynamics (nonsmooth contact dynamics, Moreau–Jean).
 //!
 //! * [`problem`]: the one-step frictional contact problem `u = W r + q` and its operator `W`
@@ -65,12 +66,16 @@ pub use world::{BodySpec, Effects, Materials, Wall, World};
 /// Every error the library returns to a host, by where it arose (each names the problem).
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
+    /// A scene file refused.
     #[error(transparent)]
     Scene(#[from] SceneError),
+    /// A step or setting refused.
     #[error(transparent)]
     Step(#[from] StepError),
+    /// A request about a body refused.
     #[error(transparent)]
     Body(#[from] BodyError),
+    /// A contact problem refused.
     #[error(transparent)]
     Problem(#[from] problem::ProblemError),
 }

@@ -1,4 +1,3 @@
-#![warn(missing_docs)]
 //! Where a solve runs, decided in one place: the device (CPU, or a GPU context), what it can do
 //! (solver, criterion, options), the choice `auto` makes and why, and the one `solve` that the
 //! command line, the time step, the sweeps and the benchmarks call.

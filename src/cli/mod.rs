@@ -145,6 +145,7 @@ enum Command {
     },
 }
 
+/// Runs the command line; the exit code says whether it succeeded.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     match run(cli) {

@@ -7,6 +7,7 @@ use rayon::prelude::*;
 
 use crate::parallel::{parallel, CHUNK};
 
+/// A uniform grid of cells of the largest body's size: candidate pairs share or neighbour a cell.
 #[derive(Default)]
 pub struct Grid {
     cell_start: Vec<u32>,

@@ -16,7 +16,9 @@ use crate::world::{Bodies, Periodic, Wall};
 /// What body `i` touches.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Antagonist {
+    /// Another body.
     Body(usize),
+    /// A wall.
     Wall(usize),
 }
 
@@ -25,9 +27,11 @@ pub enum Antagonist {
 pub struct DetectedContact {
     /// Candidate body.
     pub i: usize,
+    /// Body or wall.
     pub other: Antagonist,
     /// Which pair of features touch (several contacts per pair for polygons); 0 for disks.
     pub feature: u64,
+    /// Contact point (on the antagonist's surface).
     pub point: DVec2,
     /// Unit normal pointing from the antagonist to `i`.
     pub normal: DVec2,
@@ -47,13 +51,16 @@ impl DetectedContact {
 
 /// The configuration detection runs on (predicted positions; angles empty without rotation).
 pub struct Configuration<'a> {
+    /// Body positions.
     pub position: &'a [DVec2],
+    /// Body angles (empty without rotation).
     pub angle: &'a [f64],
     /// A periodic cell along x: pairs are also sought through its boundary.
     pub periodic: Option<Periodic>,
 }
 
 impl Configuration<'_> {
+    /// Body `k`'s angle (0 without rotation).
     #[inline]
     pub fn angle_of(&self, k: usize) -> f64 {
         self.angle.get(k).copied().unwrap_or(0.0)

@@ -28,10 +28,13 @@ fn max_separation(a: &[DVec2], b: &[DVec2]) -> (f64, usize) {
 /// One contact point of a manifold.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClipPoint {
+    /// Contact point.
     pub point: DVec2,
     /// Unit normal pointing from `b` to `a`.
     pub normal: DVec2,
+    /// Signed distance (negative: overlap).
     pub gap: f64,
+    /// Which features met (stable from step to step).
     pub feature: u64,
 }
 

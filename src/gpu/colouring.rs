@@ -6,6 +6,7 @@ use super::layout::{BsrLayout, MatrixFreeLayout, NO_ANTAGONIST};
 pub use crate::problem::colouring::Colouring;
 
 impl Colouring {
+    /// The greedy colouring of a matrix-free layout (contacts sharing a moving body conflict).
     pub fn matrix_free(op: &MatrixFreeLayout) -> Self {
         let moving = |k: u32| k != NO_ANTAGONIST && op.inv_mass[k as usize] != [0.0, 0.0];
         let body_contacts = |k: u32| {
@@ -23,6 +24,7 @@ impl Colouring {
         })
     }
 
+    /// The greedy colouring of a block-sparse `W` (contacts with a block between them conflict).
     pub fn block_sparse(w: &BsrLayout) -> Self {
         let adjacency = bsr_adjacency(w);
         Self::from_neighbours(adjacency.len(), |a, out| out.extend_from_slice(&adjacency[a]))

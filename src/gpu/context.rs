@@ -3,18 +3,30 @@
 
 use thiserror::Error;
 
+/// Why the GPU path cannot run.
 #[derive(Debug, Error)]
 pub enum GpuError {
+    /// No adapter at all.
     #[error("no GPU adapter found (hardware or software): {0}; on Debian, `apt-get install mesa-vulkan-drivers libvulkan1` provides the software adapter")]
     NoAdapter(String),
+    /// Only the software adapter, where hardware was asked for.
     #[error("no hardware GPU (a software adapter, if installed, is taken only by --device gpu)")]
     NoHardware,
+    /// The adapter would not open a device.
     #[error("the adapter {adapter} refused a device: {message}")]
-    NoDevice { adapter: String, message: String },
+    NoDevice {
+        /// The adapter's name.
+        adapter: String,
+        /// wgpu's words.
+        message: String,
+    },
+    /// A solver the GPU path lacks.
     #[error("the GPU path has no {0} solver yet (it has: nlgs, cpg, pcpg, jacobi, apgd)")]
     Unsupported(String),
+    /// A failure while running.
     #[error("GPU: {0}")]
     Runtime(String),
+    /// A stopping criterion the GPU path lacks.
     #[error("the GPU path stops on the natural-map error only, not on the {0} criterion")]
     Criterion(String),
 }
@@ -22,9 +34,13 @@ pub enum GpuError {
 /// Compiled pipelines of one specialisation: ((rotation, friction), kernels).
 type KernelCacheEntry = ((bool, bool), std::sync::Arc<super::kernels::Kernels>);
 
+/// A headless wgpu device and queue, with its compiled pipelines and buffer pool.
 pub struct GpuContext {
+    /// The device.
     pub device: wgpu::Device,
+    /// Its queue.
     pub queue: wgpu::Queue,
+    /// The adapter it runs on.
     pub info: wgpu::AdapterInfo,
     /// Compiled pipelines per specialisation (rotation, friction), built on first use.
     kernels: std::sync::Mutex<Vec<KernelCacheEntry>>,

@@ -17,6 +17,7 @@ use crate::problem::cone::{project_box, status_of};
 use crate::problem::ContactProblem;
 use crate::solvers::{SolveReport, SolverKind, SolverOptions};
 
+/// CPG or PCPG on the GPU in f32 (the driver judges it in f64).
 pub fn solve(
     ctx: &GpuContext,
     p: &ContactProblem,

@@ -11,6 +11,7 @@ use super::operator::GpuProblem;
 use crate::problem::ContactProblem;
 use crate::solvers::{SolveReport, SolverKind, SolverOptions};
 
+/// Projected Jacobi on the GPU in f32 (the driver judges it in f64).
 pub fn solve(
     ctx: &GpuContext,
     p: &ContactProblem,

@@ -5,6 +5,7 @@ use super::context::GpuContext;
 pub use super::pool::{BindGroup, GpuBuffer};
 use super::traffic;
 
+/// Invocations per workgroup of the element-wise kernels.
 pub const WORKGROUP: u32 = 64;
 
 fn pipeline(ctx: &GpuContext, name: &str, source: &str, constants: &[(&str, f64)]) -> wgpu::ComputePipeline {
@@ -24,23 +25,41 @@ fn pipeline(ctx: &GpuContext, name: &str, source: &str, constants: &[(&str, f64)
 
 /// Pipelines of one specialisation (rotation, friction).
 pub struct Kernels {
+    /// The `body_accumulate` kernel.
     pub body_accumulate: wgpu::ComputePipeline,
+    /// The `contact_gather` kernel.
     pub contact_gather: wgpu::ComputePipeline,
+    /// The `bsr_product` kernel.
     pub bsr_product: wgpu::ComputePipeline,
+    /// The `jacobi_update` kernel.
     pub jacobi_update: wgpu::ComputePipeline,
+    /// The `nlgs_colour` kernel.
     pub nlgs_colour: wgpu::ComputePipeline,
+    /// The `nlgs_colour_bsr` kernel.
     pub nlgs_colour_bsr: wgpu::ComputePipeline,
+    /// The `reduce_dot` kernel.
     pub reduce_dot: wgpu::ComputePipeline,
+    /// The `reduce_final` kernel.
     pub reduce_final: wgpu::ComputePipeline,
+    /// The `cpg_scalars` kernel.
     pub cpg_scalars: wgpu::ComputePipeline,
+    /// The `cpg_restart` kernel.
     pub cpg_restart: wgpu::ComputePipeline,
+    /// The `cpg_update` kernel.
     pub cpg_update: wgpu::ComputePipeline,
+    /// The `cpg_gradient` kernel.
     pub cpg_gradient: wgpu::ComputePipeline,
+    /// The `cpg_direction` kernel.
     pub cpg_direction: wgpu::ComputePipeline,
+    /// The `apgd_step` kernel.
     pub apgd_step: wgpu::ComputePipeline,
+    /// The `apgd_scalars` kernel.
     pub apgd_scalars: wgpu::ComputePipeline,
+    /// The `apgd_momentum` kernel.
     pub apgd_momentum: wgpu::ComputePipeline,
+    /// The `apgd_rebox` kernel.
     pub apgd_rebox: wgpu::ComputePipeline,
+    /// The `natural_map` kernel.
     pub natural_map: wgpu::ComputePipeline,
 }
 
@@ -101,6 +120,7 @@ pub fn compose(kernel: &str, source: &str) -> Result<String, String> {
 }
 
 impl Kernels {
+    /// Compiles every kernel for this specialisation (rotation, friction); see [`GpuContext::kernels`] for the cache.
     pub fn new(ctx: &GpuContext, rotation: bool, friction: bool) -> Self {
         let flags = [("ROTATION", rotation as u8 as f64), ("FRICTION", friction as u8 as f64)];
         let k = |name: &str| {

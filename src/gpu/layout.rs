@@ -11,7 +11,9 @@ use crate::problem::{BlockSparse, MatrixFree};
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuContact {
+    /// Unit normal.
     pub n: [f32; 2],
+    /// Candidate body.
     pub i: u32,
     /// `NO_ANTAGONIST` for a fixed obstacle.
     pub j: u32,
@@ -19,6 +21,7 @@ pub struct GpuContact {
     pub levers: [f32; 4],
 }
 
+/// The antagonist of a contact with a fixed obstacle.
 pub const NO_ANTAGONIST: u32 = u32::MAX;
 /// Top bit of a body-list entry: the body is the contact's antagonist `j`.
 pub const J_SIDE: u32 = 1 << 31;
@@ -26,17 +29,22 @@ pub const J_SIDE: u32 = 1 << 31;
 /// The matrix-free operator in f32.
 #[derive(Clone, Debug)]
 pub struct MatrixFreeLayout {
+    /// Every contact.
     pub contacts: Vec<GpuContact>,
     /// Body k's contacts are `body_list[body_start[k]..body_start[k + 1]]`, in contact order.
     pub body_start: Vec<u32>,
+    /// See `body_start` (top bit: the body is `j`).
     pub body_list: Vec<u32>,
     /// (1/m, 1/I) per body.
     pub inv_mass: Vec<[f32; 2]>,
+    /// Kernels specialised with rotation.
     pub rotation: bool,
+    /// Kernels specialised with friction.
     pub friction: bool,
 }
 
 impl MatrixFreeLayout {
+    /// The f32 layout of a matrix-free operator.
     pub fn new(op: &MatrixFree) -> Self {
         let nb = op.bodies.len();
         let contacts: Vec<GpuContact> = op
@@ -79,12 +87,16 @@ impl MatrixFreeLayout {
 /// An explicit 2×2-block sparse `W` in f32 (problems read from files).
 #[derive(Clone, Debug)]
 pub struct BsrLayout {
+    /// Where each block row starts.
     pub row_ptr: Vec<u32>,
+    /// Block columns.
     pub cols: Vec<u32>,
+    /// 2×2 blocks, row-major.
     pub blocks: Vec<[f32; 4]>,
 }
 
 impl BsrLayout {
+    /// The f32 layout of a block-sparse `W`.
     pub fn new(w: &BlockSparse) -> Self {
         Self {
             row_ptr: w.row_ptr.iter().map(|&x| x as u32).collect(),
@@ -94,10 +106,12 @@ impl BsrLayout {
     }
 }
 
+/// f64 pairs as f32 pairs (what the kernels read).
 pub fn to_f32_pairs(x: &[f64]) -> Vec<[f32; 2]> {
     x.chunks_exact(2).map(|c| [c[0] as f32, c[1] as f32]).collect()
 }
 
+/// f32 pairs back as f64.
 pub fn to_f64(x: &[[f32; 2]]) -> Vec<f64> {
     x.iter().flat_map(|c| [c[0] as f64, c[1] as f64]).collect()
 }

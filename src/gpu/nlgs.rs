@@ -26,6 +26,7 @@ struct Range {
     _pad: [u32; 2],
 }
 
+/// Graph-coloured NLGS on the GPU in f32 (the driver judges it in f64).
 pub fn solve(
     ctx: &GpuContext,
     p: &ContactProblem,

@@ -12,29 +12,46 @@ use crate::problem::{ContactProblem, Delassus};
 
 /// `W` on the GPU, with the CPU layout it came from (the NLGS colouring reads it).
 pub enum GpuMatrix {
+    /// The matrix-free operator.
     MatrixFree {
+        /// Its CPU layout.
         layout: MatrixFreeLayout,
+        /// The contacts ([`super::layout::GpuContact`]).
         contacts: GpuBuffer,
+        /// Where each body's contact list starts.
         body_start: GpuBuffer,
+        /// Each body's contacts.
         body_list: GpuBuffer,
+        /// (1/m, 1/I) per body.
         inv_mass: GpuBuffer,
     },
+    /// An explicit block-sparse `W`.
     Sparse {
+        /// Its CPU layout.
         layout: BsrLayout,
+        /// Block row starts.
         row_ptr: GpuBuffer,
+        /// Block columns.
         cols: GpuBuffer,
+        /// 2×2 blocks.
         blocks: GpuBuffer,
     },
 }
 
+/// A problem uploaded: `W`, `q`, μ and the pipelines for its effects.
 pub struct GpuProblem {
+    /// `W`.
     pub matrix: GpuMatrix,
+    /// Free velocities.
     pub q: GpuBuffer,
+    /// Friction coefficients.
     pub mu: GpuBuffer,
+    /// Pipelines for the problem's rotation and friction.
     pub kernels: Arc<Kernels>,
 }
 
 impl GpuProblem {
+    /// Uploads `p` (f64 to f32).
     pub fn upload(ctx: &GpuContext, p: &ContactProblem) -> Self {
         let matrix = match &p.w {
             Delassus::MatrixFree(op) => {
@@ -90,8 +107,26 @@ impl GpuProblem {
 
 /// A bound product `u = W r + q` (bind groups keep the buffers they use alive).
 pub enum GpuOperator {
-    MatrixFree { bodies: usize, contacts: usize, accumulate: BindGroup, gather: BindGroup, _v: GpuBuffer },
-    Sparse { contacts: usize, product: BindGroup },
+    /// `B M⁻¹ Bᵀ` in two kernels: accumulate per body, gather per contact.
+    MatrixFree {
+        /// Bodies.
+        bodies: usize,
+        /// Contacts.
+        contacts: usize,
+        /// `v = M⁻¹ Bᵀ r`, bound.
+        accumulate: BindGroup,
+        /// `u = B v + q`, bound.
+        gather: BindGroup,
+        /// The body velocities both use.
+        _v: GpuBuffer,
+    },
+    /// An explicit block-sparse `W` in one kernel.
+    Sparse {
+        /// Contacts.
+        contacts: usize,
+        /// `u = W r + q`, bound.
+        product: BindGroup,
+    },
 }
 
 impl GpuOperator {

@@ -83,6 +83,7 @@ impl GpuBuffer {
         self.0.len
     }
 
+    /// Whether the buffer holds no byte.
     pub fn is_empty(&self) -> bool {
         self.0.len == 0
     }
@@ -120,6 +121,7 @@ pub struct BindGroup {
 }
 
 impl BindGroup {
+    /// A bind group that keeps its buffers alive.
     pub fn new(group: wgpu::BindGroup, buffers: Vec<GpuBuffer>) -> Self {
         Self { group, _buffers: buffers }
     }

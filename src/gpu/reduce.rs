@@ -16,6 +16,7 @@ pub struct Dot {
 }
 
 impl Dot {
+    /// Binds `a · b` over `n` entries into `scalars[slot]` (two passes through `partials`).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         ctx: &GpuContext,
@@ -35,6 +36,7 @@ impl Dot {
         Self { first, second, groups, _uniforms: [len, job] }
     }
 
+    /// Records both passes.
     pub fn record(&self, k: &Kernels, pass: &mut wgpu::ComputePass) {
         dispatch(pass, &k.reduce_dot, &self.first, self.groups);
         dispatch(pass, &k.reduce_final, &self.second, 1);

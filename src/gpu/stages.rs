@@ -13,6 +13,7 @@ fn run(ctx: &GpuContext, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGro
     submit(ctx, "stage", |pass| dispatch(pass, pipeline, group, groups(n)));
 }
 
+/// Runs `body_accumulate` alone (compared with its mirror in the tests).
 pub fn body_accumulate(ctx: &GpuContext, op: &MatrixFreeLayout, r: &[[f32; 2]]) -> Result<Vec<[f32; 4]>, GpuError> {
     let k = ctx.kernels(op.rotation, op.friction);
     let bufs = [
@@ -28,6 +29,7 @@ pub fn body_accumulate(ctx: &GpuContext, op: &MatrixFreeLayout, r: &[[f32; 2]]) 
     read_back(ctx, &bufs[5], op.inv_mass.len()).map_err(GpuError::Runtime)
 }
 
+/// Runs `contact_gather` alone.
 pub fn contact_gather(
     ctx: &GpuContext,
     op: &MatrixFreeLayout,
@@ -46,6 +48,7 @@ pub fn contact_gather(
     read_back(ctx, &bufs[3], q.len()).map_err(GpuError::Runtime)
 }
 
+/// Runs `bsr_product` alone.
 pub fn bsr_product(ctx: &GpuContext, w: &BsrLayout, r: &[[f32; 2]], q: &[[f32; 2]]) -> Result<Vec<[f32; 2]>, GpuError> {
     let k = ctx.kernels(true, true);
     let bufs = [
@@ -61,6 +64,7 @@ pub fn bsr_product(ctx: &GpuContext, w: &BsrLayout, r: &[[f32; 2]], q: &[[f32; 2
     read_back(ctx, &bufs[5], q.len()).map_err(GpuError::Runtime)
 }
 
+/// Runs `jacobi_update` alone.
 pub fn jacobi_update(
     ctx: &GpuContext,
     u: &[[f32; 2]],

@@ -11,7 +11,9 @@ use crate::problem::ContactProblem;
 
 /// Seconds per `W` product and per projected-Jacobi iteration (product + update).
 pub struct KernelTimes {
+    /// Seconds per product.
     pub product: f64,
+    /// Seconds per Jacobi iteration.
     pub jacobi_iteration: f64,
 }
 
@@ -26,6 +28,7 @@ fn run(ctx: &GpuContext, n: usize, mut record: impl FnMut(&mut wgpu::ComputePass
     Ok(start.elapsed().as_secs_f64() / n as f64)
 }
 
+/// Times `n` products and `n` Jacobi iterations of `p` on the GPU.
 pub fn kernel_times(ctx: &GpuContext, p: &ContactProblem, n: usize) -> Result<KernelTimes, GpuError> {
     let nc = p.n_contacts();
     let gp = GpuProblem::upload(ctx, p);

@@ -13,6 +13,7 @@ static BYTES_ALLOCATED: AtomicU64 = AtomicU64::new(0);
 /// Dispatches and bytes, since start or over an interval.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct Traffic {
+    /// Kernel dispatches.
     pub dispatches: u64,
     /// CPU → GPU (buffers created with data, writes).
     pub bytes_up: u64,
@@ -20,6 +21,7 @@ pub struct Traffic {
     pub bytes_down: u64,
     /// GPU buffers created (a pooled buffer reused is not counted), and their bytes.
     pub allocations: u64,
+    /// See `allocations`.
     pub bytes_allocated: u64,
 }
 

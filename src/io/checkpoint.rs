@@ -7,16 +7,41 @@ use thiserror::Error;
 
 use crate::stepping::Checkpoint;
 
+/// A checkpoint that cannot be written, read or applied.
 #[derive(Debug, Error)]
 pub enum CheckpointError {
+    /// The file could not be read or written.
     #[error("{path}: {cause}")]
-    Io { path: String, cause: std::io::Error },
+    Io {
+        /// The file.
+        path: String,
+        /// The underlying error.
+        cause: std::io::Error,
+    },
+    /// The file is not a checkpoint.
     #[error("{path}: not a moreau checkpoint: {cause}")]
-    Format { path: String, cause: serde_json::Error },
+    Format {
+        /// The file.
+        path: String,
+        /// The underlying error.
+        cause: serde_json::Error,
+    },
+    /// The checkpoint belongs to another scene, or the scene file changed.
     #[error(
         "{path} was written by scene {scene:?} from a file with fingerprint {written}; {scene_file} has {now}: the scene file changed, or it is another scene"
     )]
-    OtherScene { path: String, scene: String, written: String, scene_file: String, now: String },
+    OtherScene {
+        /// The file.
+        path: String,
+        /// The scene the checkpoint was written for.
+        scene: String,
+        /// Fingerprint of that scene's file then.
+        written: String,
+        /// The scene file given now.
+        scene_file: String,
+        /// Its fingerprint now.
+        now: String,
+    },
 }
 
 /// FNV-1a (64 bits) of a scene file's bytes: a checkpoint is applied only to the file it came
@@ -34,6 +59,7 @@ pub fn scene_identity(scene: &Path) -> Result<(String, String), CheckpointError>
     Ok((name, fingerprint(&bytes)))
 }
 
+/// Writes `c` as JSON at `path` (f64 values written to round-trip exactly).
 pub fn write_checkpoint(c: &Checkpoint, path: &Path) -> Result<(), CheckpointError> {
     let json = serde_json::to_string(c).expect("a checkpoint serialises");
     std::fs::write(path, json).map_err(|cause| CheckpointError::Io { path: path.display().to_string(), cause })

@@ -23,12 +23,15 @@ use crate::world::BodyShape;
 /// One grain as a picture sees it.
 #[derive(Clone, Debug)]
 pub struct Grain {
+    /// Centre (m).
     pub position: DVec2,
     /// The disk's radius, or a polygon's bounding radius.
     pub radius: f64,
     /// A polygon's vertices in the world frame; `None` for a disk.
     pub outline: Option<Vec<DVec2>>,
+    /// Velocity (m/s).
     pub velocity: DVec2,
+    /// The body's tag.
     pub tag: u32,
 }
 
@@ -45,13 +48,17 @@ impl Grain {
 /// One contact: the force chain segment and the force on `body`.
 #[derive(Clone, Debug)]
 pub struct Chain {
+    /// The body the force acts on.
     pub body: usize,
     /// The other grain, or `None` for a wall.
     pub other: Option<usize>,
     /// The chain's ends: the two centres, or the centre and the contact point for a wall.
     pub from: DVec2,
+    /// See `from`.
     pub to: DVec2,
+    /// Contact point.
     pub point: DVec2,
+    /// Unit normal, towards `body`.
     pub normal: DVec2,
     /// Mean force of the step on `body` (N).
     pub force: DVec2,
@@ -67,12 +74,15 @@ impl Chain {
 /// What one picture shows.
 #[derive(Clone, Debug, Default)]
 pub struct Frame {
+    /// Step shown.
     pub step: usize,
     /// Simulated time, when known.
     pub time: Option<f64>,
+    /// Every grain.
     pub grains: Vec<Grain>,
     /// Each wall's points: a segment's two ends, or a polygon's vertices.
     pub walls: Vec<Vec<DVec2>>,
+    /// Every contact.
     pub chains: Vec<Chain>,
 }
 
@@ -89,6 +99,7 @@ pub enum Colouring {
 }
 
 impl Colouring {
+    /// The names the command line takes.
     pub const NAMES: [&'static str; 3] = ["tag", "speed", "pressure"];
 }
 

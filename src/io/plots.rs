@@ -38,12 +38,19 @@ pub fn font_available() -> bool {
 /// A series: label and (x, y) points.
 pub type Series = (String, Vec<(f64, f64)>);
 
+/// A line chart, written as SVG and PNG.
 pub struct Chart<'a> {
+    /// Title.
     pub title: &'a str,
+    /// Label of the x axis.
     pub x_label: &'a str,
+    /// Label of the y axis.
     pub y_label: &'a str,
+    /// Logarithmic x axis.
     pub log_x: bool,
+    /// Logarithmic y axis.
     pub log_y: bool,
+    /// The curves: label and points.
     pub series: &'a [Series],
 }
 

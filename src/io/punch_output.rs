@@ -16,6 +16,7 @@ fn von_mises(s: &[f64; 3], poisson: f64) -> f64 {
     (0.5 * ((s[0] - s[1]).powi(2) + (s[1] - szz).powi(2) + (szz - s[0]).powi(2)) + 3.0 * s[2] * s[2]).sqrt()
 }
 
+/// Writes the deformed punch (displacements, stresses, von Mises) as a `.vtu` file.
 pub fn write_vtu(model: &PunchModel, sol: &PunchSolution, path: &Path) -> Result<()> {
     let mesh = &model.mesh;
     let points: Vec<f64> = mesh.nodes.iter().flat_map(|p| [p[0], p[1], 0.0]).collect();
@@ -55,6 +56,7 @@ struct ContactRow {
     pressure: f64,
 }
 
+/// Writes each contact node's position, gap, force and pressure as CSV.
 pub fn write_contact_csv(model: &PunchModel, sol: &PunchSolution, path: &Path) -> Result<()> {
     let mut w = csv::Writer::from_path(path).with_context(|| format!("creating {}", path.display()))?;
     for (k, &n) in model.mesh.contact.iter().enumerate() {

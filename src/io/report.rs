@@ -3,28 +3,45 @@
 use crate::solvers::{HistoryPoint, SolveReport, SolverKind, SolverOptions, StopCriterion};
 use serde::Serialize;
 
+/// The JSON of one solve: its setting, its result and its history.
 #[derive(Serialize)]
 pub struct SolveOutput<'a> {
+    /// The problem's name.
     pub problem: &'a str,
+    /// The solver.
     pub solver: SolverKind,
+    /// `cpu` or `gpu`.
     pub device: &'a str,
     /// The GPU adapter's name when `device` is `gpu`.
     pub adapter: Option<&'a str>,
+    /// Contacts.
     pub contacts: usize,
+    /// Tolerance asked for.
     pub tol: f64,
+    /// The stopping criterion.
     pub criterion: StopCriterion,
+    /// Whether the answer meets the tolerance.
     pub converged: bool,
+    /// Iterations done.
     pub iterations: usize,
+    /// The f64 error of the answer.
     pub error: f64,
+    /// Solve time (s).
     pub seconds: f64,
+    /// Operator products.
     pub w_products: usize,
+    /// Why the solve stopped.
     pub stop_reason: &'a str,
+    /// The error at the checks.
     pub history: &'a [HistoryPoint],
+    /// The impulses.
     pub r: &'a [f64],
+    /// Their velocities `W r + q`.
     pub u: &'a [f64],
 }
 
 impl<'a> SolveOutput<'a> {
+    /// The output of `rep`, a solve of `problem` on `device` with `opts`.
     pub fn new(problem: &'a str, device: &'a str, opts: &SolverOptions, rep: &'a SolveReport) -> Self {
         Self {
             problem,

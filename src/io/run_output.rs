@@ -73,42 +73,65 @@ struct DrivenRow {
 /// Totals over a run, written as `summary.json`.
 #[derive(Serialize, Debug, Clone, Default)]
 pub struct RunSummary {
+    /// The scene's name.
     pub scene: String,
+    /// `cpu`, or `gpu (adapter)`.
     pub device: String,
     /// CPU threads of the run (detection, and solves on the CPU).
     pub threads: usize,
+    /// The solver of every step.
     pub solver: String,
+    /// Its tolerance.
     pub tol: f64,
+    /// The effects on.
     pub effects: Vec<String>,
+    /// Bodies at the start.
     pub bodies: usize,
+    /// Steps run.
     pub steps: usize,
+    /// Wall time of the run (s).
     pub seconds: f64,
+    /// Steps per second of wall time.
     pub steps_per_second: f64,
+    /// Time in the solves (s).
     pub solve_seconds: f64,
+    /// Time in detection (s).
     pub detection_seconds: f64,
+    /// Steps whose solve met the tolerance.
     pub converged_steps: usize,
+    /// Steps whose solve did not.
     pub unconverged_steps: usize,
+    /// The largest error of any step.
     pub max_error: f64,
     /// Iterations (NLGS: sweeps) per step: mean, median, 95th percentile, largest.
     pub mean_iterations: f64,
+    /// See `mean_iterations`.
     pub median_iterations: usize,
+    /// See `mean_iterations`.
     pub p95_iterations: usize,
+    /// See `mean_iterations`.
     pub max_iterations: usize,
     /// Steps whose solve ran to max_iter.
     pub max_iter_steps: usize,
     /// Every step's iterations, for the percentiles.
     #[serde(skip)]
     pub iterations: Vec<usize>,
+    /// Mean contacts per step.
     pub mean_contacts: f64,
+    /// Contacts of the last step.
     pub last_contacts: usize,
     /// Largest overlap over the run, absolute and relative to the mean grain diameter.
     pub max_penetration: f64,
+    /// See `max_penetration`.
     pub max_penetration_per_diameter: f64,
+    /// Kinetic energy at the end (J).
     pub final_kinetic_energy: f64,
+    /// Simulated time at the end (s).
     pub final_time: f64,
     /// Contacts found overlapping at the end of a step that its start missed (grains kicked
     /// beyond their reach), and steps whose positions the projection corrected.
     pub missed_contacts: usize,
+    /// See `missed_contacts`.
     pub projected_steps: usize,
     /// Why the run stopped before its last step (the outputs hold the steps before).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -116,6 +139,7 @@ pub struct RunSummary {
 }
 
 impl RunSummary {
+    /// Counts one step.
     pub fn add(&mut self, r: &StepReport) {
         self.steps += 1;
         self.seconds += r.seconds;
@@ -182,7 +206,9 @@ impl RunSummary {
     }
 }
 
+/// The files of a run: steps.csv, walls.csv, driven.csv, VTK series, summary.json.
 pub struct RunOutput {
+    /// The output folder.
     pub dir: PathBuf,
     csv: csv::Writer<File>,
     walls_csv: Option<csv::Writer<File>>,
@@ -301,6 +327,7 @@ impl RunOutput {
         super::vtk::write_pvd(&self.dir.join("walls.pvd"), &self.walls)
     }
 
+    /// Flushes the CSV files, closes the VTK series and writes `summary`.
     pub fn finish(mut self, summary: &RunSummary) -> Result<()> {
         self.csv.flush()?;
         for w in [&mut self.walls_csv, &mut self.driven_csv].into_iter().flatten() {

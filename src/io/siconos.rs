@@ -8,14 +8,35 @@ use std::fmt::Write as _;
 use std::path::Path;
 use thiserror::Error;
 
+/// A problem file that cannot be read or written.
 #[derive(Debug, Error)]
 pub enum FileError {
+    /// The file could not be read or written.
     #[error("{path}: {cause}")]
-    Io { path: String, cause: std::io::Error },
+    Io {
+        /// The file.
+        path: String,
+        /// The underlying error.
+        cause: std::io::Error,
+    },
+    /// A line that cannot be read.
     #[error("{path}: line {line}: {msg}")]
-    Parse { path: String, line: usize, msg: String },
+    Parse {
+        /// The file.
+        path: String,
+        /// Line (from 1).
+        line: usize,
+        /// What is wrong.
+        msg: String,
+    },
+    /// Values that are read but refused.
     #[error("{path}: {msg}")]
-    Invalid { path: String, msg: String },
+    Invalid {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        msg: String,
+    },
 }
 
 #[derive(Debug)]
@@ -226,7 +247,9 @@ fn read_csparse(c: &mut Cursor, nc: usize) -> Result<BlockSparse, ParseError> {
 /// Storage of `W` in a written file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Storage {
+    /// Every entry of `W`.
     Dense,
+    /// Siconos' sparse (CSparse) dump.
     Sparse,
 }
 
@@ -241,6 +264,7 @@ pub fn write_fc2d(problem: &ContactProblem, storage: Storage, path: &Path) -> Re
     std::fs::write(path, text).map_err(|cause| FileError::Io { path: path.display().to_string(), cause })
 }
 
+/// The fc2d text of `problem` (what [`write_fc2d`] writes).
 pub fn format_fc2d(problem: &ContactProblem, storage: Storage) -> String {
     let nc = problem.n_contacts();
     let n = 2 * nc;

@@ -167,9 +167,13 @@ pub const STATUS_LEGEND: &str = "status: 0 open, 1 stick, 2 slide r_t=+mu r_n, 3
 /// A `.vtu` file read back: points (x, y), cells, and its point and cell arrays as f64.
 pub struct Grid {
     path: PathBuf,
+    /// Point coordinates.
     pub points: Vec<glam::DVec2>,
+    /// Cell connectivity.
     pub connectivity: Vec<u64>,
+    /// End of each cell in the connectivity.
     pub offsets: Vec<u64>,
+    /// Cell types.
     pub types: Vec<CellType>,
     point: Vec<(String, Vec<f64>)>,
     cell: Vec<(String, Vec<f64>)>,
@@ -183,10 +187,12 @@ impl Grid {
         })
     }
 
+    /// The point array called `name`.
     pub fn point_array(&self, name: &str) -> Result<&[f64]> {
         self.array(&self.point, name, "point")
     }
 
+    /// The cell array called `name`.
     pub fn cell_array(&self, name: &str) -> Result<&[f64]> {
         self.array(&self.cell, name, "cell")
     }

@@ -1,4 +1,3 @@
-#![warn(missing_docs)]
 //! The one-step 2D frictional contact problem `u = W r + q` with a Coulomb cone per contact.
 //!
 //! Vectors are interleaved per contact, normal first: `r = [r_n0, r_t0, r_n1, r_t1, …]`. With

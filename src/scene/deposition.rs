@@ -17,7 +17,9 @@ pub struct Deposition {
     cell: f64,
     grid: HashMap<(i64, i64), Vec<u32>>,
     columns: HashMap<i64, Vec<u32>>,
+    /// Disk centres.
     pub centers: Vec<DVec2>,
+    /// Disk radii.
     pub radii: Vec<f64>,
 }
 

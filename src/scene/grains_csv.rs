@@ -9,10 +9,15 @@ use glam::DVec2;
 /// One grain of the file.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GrainRow {
+    /// Centre (m).
     pub center: DVec2,
+    /// Radius (m).
     pub radius: f64,
+    /// Velocity (0 when the column is absent).
     pub velocity: DVec2,
+    /// Spin (0 when absent).
     pub spin: f64,
+    /// Tag (0 when absent).
     pub tag: u32,
 }
 

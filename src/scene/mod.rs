@@ -21,6 +21,7 @@ pub use punch_file::PunchScene;
 pub struct OutputSettings {
     /// With `vtk`, write VTK files every this many steps (≥ 1) and at the last.
     pub every: usize,
+    /// Whether VTK files are written.
     pub vtk: bool,
     /// Step whose picture (grains and force chains) is written as PNG; `None`: the last step.
     pub picture_step: Option<usize>,
@@ -33,31 +34,64 @@ pub struct OutputSettings {
 /// A loaded scene, ready to simulate.
 #[derive(Clone, Debug)]
 pub struct Scene {
+    /// The scene's name (outputs are named after it).
     pub name: String,
+    /// What it is, in words.
     pub description: String,
+    /// The world at time 0.
     pub world: World,
+    /// Time step, θ, alert, solver.
     pub settings: StepSettings,
+    /// Steps to run.
     pub steps: usize,
+    /// What to write.
     pub output: OutputSettings,
     /// Things that are legal but probably not what the author meant (printed by the CLI).
     pub warnings: Vec<String>,
 }
 
+/// A scene file refused: where and why.
 #[derive(Debug, Error)]
 pub enum SceneError {
+    /// The file cannot be read (`cause` is not a `source`: the message already holds it, and
+    /// chains would print it twice).
     #[error("{path}: cannot read the scene file: {cause}")]
-    /// (not a `source`: the message already holds it, and chains would print it twice)
-    Io { path: PathBuf, cause: std::io::Error },
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        cause: std::io::Error,
+    },
+    /// The file is not valid TOML.
     #[error("{path}: line {line}: {message}")]
-    Syntax { path: PathBuf, line: usize, message: String },
+    Syntax {
+        /// The file.
+        path: PathBuf,
+        /// Line (from 1).
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// Values that are read but refused.
     #[error("{path}: line {line}: {field}: {message}")]
-    Invalid { path: PathBuf, line: usize, field: String, message: String },
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// Line (from 1).
+        line: usize,
+        /// The field, as the file names it.
+        field: String,
+        /// What is wrong.
+        message: String,
+    },
 }
 
 /// A granular scene (grains and walls) or a structural one (the finite-element punch).
 #[derive(Clone, Debug)]
 pub enum AnyScene {
+    /// A granular scene (bodies and walls).
     Granular(Box<Scene>),
+    /// A structural scene (the elastic punch).
     Punch(Box<PunchScene>),
 }
 

@@ -56,12 +56,19 @@ struct OutputSpec {
 /// A loaded structural scene.
 #[derive(Clone, Debug)]
 pub struct PunchScene {
+    /// The scene's name.
     pub name: String,
+    /// What it is, in words.
     pub description: String,
+    /// The punch, its mesh and load.
     pub model: PunchModel,
+    /// The solver of `moreau run`.
     pub solver: StructuralSolver,
+    /// Its options.
     pub options: SolverOptions,
+    /// Whether a VTK file is written.
     pub vtk: bool,
+    /// Whether a picture is drawn.
     pub picture: bool,
 }
 

@@ -1,4 +1,3 @@
-#![warn(missing_docs)]
 //! CPU reference solvers (f64) of the one-step frictional contact problem.
 //!
 //! | solver | file | idea |

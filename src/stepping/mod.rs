@@ -1,4 +1,3 @@
-#![warn(missing_docs)]
 //! Moreau–Jean time stepping (notes §1): detect, build the matrix-free contact problem of the
 //! step, solve it warm-started, update, project what the update pushed in; checks of the start
 //! and of every step's state. [`Simulation`] is the library API a host code drives.

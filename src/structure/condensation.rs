@@ -30,10 +30,13 @@ const BATCH: usize = 64;
 /// The elastic punch on the rigid plate, pushed down by `displacement` at its top.
 #[derive(Clone, Debug)]
 pub struct PunchModel {
+    /// Punch and plate dimensions, mesh density.
     pub geometry: PunchGeometry,
+    /// Young's modulus and Poisson's ratio (plane strain).
     pub material: Elastic,
     /// Imposed downward displacement of the top (m).
     pub displacement: f64,
+    /// The finite-element mesh.
     pub mesh: Mesh,
     /// Initial gap of each contact node.
     pub gap: Vec<f64>,
@@ -49,6 +52,7 @@ fn sparse(n: usize, t: &[Triplet<usize, usize, f64>]) -> Result<SparseColMat<usi
 }
 
 impl PunchModel {
+    /// Builds the mesh and the boundary conditions; refuses bad geometry or material.
     pub fn new(geometry: PunchGeometry, material: Elastic, displacement: f64) -> Result<Self, StructureError> {
         geometry.check().map_err(StructureError::Invalid)?;
         material.check().map_err(StructureError::Invalid)?;
@@ -80,10 +84,12 @@ impl PunchModel {
         Ok(Self { geometry, material, displacement, mesh, gap, dofs, n_interior, triplets, interior: OnceLock::new() })
     }
 
+    /// Contact nodes (unknowns of the condensed LCP).
     pub fn n_contacts(&self) -> usize {
         self.mesh.contact.len()
     }
 
+    /// Free displacement dofs.
     pub fn n_dofs(&self) -> usize {
         self.dofs.len()
     }
@@ -257,6 +263,7 @@ pub struct PunchSolution {
     pub stress: Vec<[f64; 3]>,
     /// Gap after deformation and contact force at each contact node.
     pub z: Vec<f64>,
+    /// Contact force at each contact node.
     pub w: Vec<f64>,
     /// Contact force over the node's tributary length.
     pub pressure: Vec<f64>,

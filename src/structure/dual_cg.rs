@@ -12,7 +12,9 @@ use crate::solvers::{cpg, SolveReport, SolverOptions};
 pub struct DualSolution {
     /// The solver's own report on the dual problem (its `r` are the forces `w`, its `u` the gaps `z`).
     pub report: SolveReport,
+    /// Gaps after deformation.
     pub z: Vec<f64>,
+    /// Contact forces.
     pub w: Vec<f64>,
 }
 

@@ -13,6 +13,7 @@ pub struct Elastic {
 }
 
 impl Elastic {
+    /// Refuses a modulus ≤ 0 or a Poisson ratio outside (−1, 1/2).
     pub fn check(&self) -> Result<(), String> {
         if !(self.young.is_finite() && self.young > 0.0) {
             return Err(format!("young = {} must be > 0", self.young));

@@ -67,7 +67,9 @@ impl PunchGeometry {
 /// Nodes, quadrilaterals (counter-clockwise) and the boundary node sets.
 #[derive(Clone, Debug)]
 pub struct Mesh {
+    /// Node coordinates (m).
     pub nodes: Vec<[f64; 2]>,
+    /// Each quadrilateral's four nodes.
     pub quads: Vec<[usize; 4]>,
     /// Bottom nodes, by increasing x: the potential contact (one normal dof each).
     pub contact: Vec<usize>,
@@ -78,6 +80,7 @@ pub struct Mesh {
 }
 
 impl Mesh {
+    /// The structured mesh of the half punch (symmetric about x = 0).
     pub fn punch(g: &PunchGeometry) -> Self {
         let [nx, ny] = g.cells;
         let id = |i: usize, j: usize| i * (ny + 1) + j;

@@ -29,10 +29,13 @@ pub use condensation::{PunchModel, PunchSolution};
 pub use elasticity::Elastic;
 pub use mesh::{Mesh, PunchGeometry};
 
+/// Why a structural problem cannot be built or solved.
 #[derive(Debug, Error)]
 pub enum StructureError {
+    /// Bad input, in words.
     #[error("{0}")]
     Invalid(String),
+    /// The stiffness factorisation failed.
     #[error("sparse Cholesky factorisation failed ({0}): is the body held against rigid motion?")]
     Factorisation(String),
 }
@@ -40,18 +43,23 @@ pub enum StructureError {
 /// A frictionless LCP `w = M z + q`, `0 ≤ z ⊥ w ≥ 0`, with a dense symmetric `M` (row-major).
 #[derive(Clone, Debug)]
 pub struct Lcp {
+    /// Number of unknowns.
     pub n: usize,
+    /// `M`, n × n, row-major.
     pub m: Vec<f64>,
+    /// `q`.
     pub q: Vec<f64>,
 }
 
 impl Lcp {
+    /// The LCP of `M` (n × n, row-major) and `q`.
     pub fn new(m: Vec<f64>, q: Vec<f64>) -> Self {
         let n = q.len();
         assert_eq!(m.len(), n * n, "M must be n × n");
         Self { n, m, q }
     }
 
+    /// `M_ij`.
     pub fn entry(&self, i: usize, j: usize) -> f64 {
         self.m[i * self.n + j]
     }

@@ -10,11 +10,14 @@ use crate::solvers::{solve, SolverKind, SolverOptions};
 /// A solver of the structural problem: a granular solver on the primal LCP, or the dual CG.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StructuralSolver {
+    /// A granular solver on the primal LCP (gaps from forces).
     Primal(SolverKind),
+    /// Projected CG on the dual problem (forces from gaps).
     DualCg,
 }
 
 impl StructuralSolver {
+    /// A solver by name (`dual_cg` or a granular solver's name).
     pub fn parse(name: &str) -> Result<Self, String> {
         if name == "dual_cg" || name == "dual-cg" {
             return Ok(Self::DualCg);
@@ -25,6 +28,7 @@ impl StructuralSolver {
         })
     }
 
+    /// Its name.
     pub fn name(&self) -> &'static str {
         match self {
             Self::Primal(k) => k.name(),
@@ -47,7 +51,9 @@ impl fmt::Display for StructuralSolver {
 /// `z = (s F) w̃ + q_F`. No solver's iterates change (NLGS, CG and LATIN's scaled k are invariant
 /// to it); only the measure becomes meaningful.
 pub struct PunchProblems {
+    /// `w̃ = (M/s) z + q/s` (forces from gaps).
     pub primal: Lcp,
+    /// `z = (s F) w̃ + q_F` (gaps from forces).
     pub dual: Lcp,
     /// `s`: contact force = `s · w̃`.
     pub force_scale: f64,
@@ -56,6 +62,7 @@ pub struct PunchProblems {
 }
 
 impl PunchProblems {
+    /// Condenses the model onto its contact nodes and solves for the reference.
     pub fn new(model: &PunchModel) -> Result<Self, StructureError> {
         let stiffness = model.condense()?;
         let flexibility = model.flexibility()?;
@@ -95,21 +102,31 @@ impl PunchProblems {
 /// One recorded iterate.
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct Point {
+    /// Iterations done.
     pub iteration: usize,
+    /// Seconds.
     pub seconds: f64,
+    /// Operator products.
     pub w_products: usize,
     /// Natural-map error of the primal pair (z, w).
     pub error: f64,
+    /// Energy-norm error ‖z − z*‖_M / ‖z*‖_M.
     pub energy_error: f64,
 }
 
 /// One solver's solve of the punch.
 pub struct StructuralRun {
+    /// The solver.
     pub solver: StructuralSolver,
+    /// Every iterate recorded.
     pub points: Vec<Point>,
+    /// Whether it met its tolerance.
     pub converged: bool,
+    /// Iterations done.
     pub iterations: usize,
+    /// Seconds.
     pub seconds: f64,
+    /// Why it stopped.
     pub stop_reason: String,
     /// Gaps after deformation.
     pub z: Vec<f64>,
@@ -118,10 +135,12 @@ pub struct StructuralRun {
 }
 
 impl StructuralRun {
+    /// Natural-map error of the last iterate.
     pub fn error(&self) -> f64 {
         self.points.last().map_or(f64::NAN, |p| p.error)
     }
 
+    /// Energy-norm error of the last iterate.
     pub fn energy_error(&self) -> f64 {
         self.points.last().map_or(f64::NAN, |p| p.energy_error)
     }
@@ -186,12 +205,19 @@ pub fn run(problems: &PunchProblems, solver: StructuralSolver, opts: &SolverOpti
 pub struct LatinKRow {
     /// `k = factor · mean(diag M)` (or `· diag M` per contact).
     pub factor: f64,
+    /// The resulting k.
     pub k: f64,
+    /// Whether k is scaled per contact (diag M) rather than by its mean.
     pub per_contact_diagonal: bool,
+    /// Whether it met the tolerance.
     pub converged: bool,
+    /// Iterations.
     pub iterations: usize,
+    /// Seconds.
     pub seconds: f64,
+    /// Natural-map error.
     pub error: f64,
+    /// Energy-norm error.
     pub energy_error: f64,
 }
 

@@ -15,32 +15,50 @@ use crate::solvers::{HistoryPoint, SolverKind, SolverOptions};
 /// One solver on one device on one problem: its history and its final state.
 #[derive(Clone, Debug)]
 pub struct Run {
+    /// The problem's name.
     pub problem: String,
+    /// Its contacts.
     pub contacts: usize,
     /// The solver's name (a core solver, or `dual_cg` on a structural problem).
     pub solver: String,
     /// Where it ran: `cpu` or `gpu` ([`Backend::name`]).
     pub device: &'static str,
+    /// The error against time and work.
     pub history: Vec<HistoryPoint>,
+    /// Whether it met the tightest tolerance.
     pub converged: bool,
+    /// Iterations done.
     pub iterations: usize,
+    /// Final error.
     pub error: f64,
+    /// Seconds.
     pub seconds: f64,
+    /// Why it stopped.
     pub stop_reason: String,
 }
 
 /// One row of `work_precision.csv`: a run judged at one tolerance.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Row {
+    /// The problem's name.
     pub problem: String,
+    /// Its contacts.
     pub contacts: usize,
+    /// The solver's name.
     pub solver: String,
+    /// `cpu` or `gpu`.
     pub device: String,
+    /// The tolerance this row judges at.
     pub tol: f64,
+    /// Whether the history reached it.
     pub converged: bool,
+    /// Iterations to reach it (or done).
     pub iterations: usize,
+    /// The error then.
     pub error: f64,
+    /// Seconds to reach it (or spent).
     pub seconds: f64,
+    /// Operator products to reach it (or done).
     pub w_products: usize,
 }
 

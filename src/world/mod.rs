@@ -1,4 +1,3 @@
-#![warn(missing_docs)]
 //! The simulated system: bodies (disks, convex polygons), walls, materials and the effects a
 //! scene switches on. Stored as flat arrays (structure of arrays): per-body data that an effect
 //! needs (angles and spins for rotation, pair tables for friction…) exists only when it is on.

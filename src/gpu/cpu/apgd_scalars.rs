@@ -1,5 +1,6 @@
 //! Mirror of `shaders/apgd_scalars.wgsl`: θ, β and the restart test.
 
+/// The CPU mirror of `apgd_scalars`: the same bindings and order of operations in f32.
 pub fn apgd_scalars(scalars: &mut [f32]) {
     let theta = scalars[1];
     let mut theta_next = 0.5 * (-theta * theta + theta * (theta * theta + 4.0).sqrt());

@@ -1,5 +1,6 @@
 //! Mirror of `shaders/apgd_step.wgsl`: next = Π_box(y − g/L), diff = next − γ.
 
+/// The CPU mirror of `apgd_step`: the same bindings and order of operations in f32.
 pub fn apgd_step(
     scalars: &[f32],
     g: &[[f32; 2]],

@@ -2,6 +2,7 @@
 
 use crate::gpu::layout::{MatrixFreeLayout, J_SIDE};
 
+/// The CPU mirror of `body_accumulate`: the same bindings and order of operations in f32.
 pub fn body_accumulate(op: &MatrixFreeLayout, r: &[[f32; 2]], v: &mut [[f32; 4]]) {
     for (k, out) in v.iter_mut().enumerate().take(op.inv_mass.len()) {
         let (mut p, mut torque) = ([0.0f32; 2], 0.0f32);

@@ -2,6 +2,7 @@
 
 use crate::gpu::layout::BsrLayout;
 
+/// The CPU mirror of `bsr_product`: the same bindings and order of operations in f32.
 pub fn bsr_product(w: &BsrLayout, r: &[[f32; 2]], q: &[[f32; 2]], u: &mut [[f32; 2]]) {
     for a in 0..q.len() {
         let mut acc = q[a];

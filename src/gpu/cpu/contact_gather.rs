@@ -2,6 +2,7 @@
 
 use crate::gpu::layout::{MatrixFreeLayout, NO_ANTAGONIST};
 
+/// The CPU mirror of `contact_gather`: the same bindings and order of operations in f32.
 pub fn contact_gather(op: &MatrixFreeLayout, v: &[[f32; 4]], q: &[[f32; 2]], u: &mut [[f32; 2]]) {
     for a in 0..op.contacts.len() {
         let [un, ut] = gather_one(op, v, a);

@@ -1,5 +1,6 @@
 //! Mirror of `shaders/cpg_gradient.wgsl`: tangent-cone projections w (of −s∘u) and z (of d).
 
+/// The CPU mirror of `cpg_gradient`: the same bindings and order of operations in f32.
 pub fn cpg_gradient(
     u: &[[f32; 2]],
     scale: &[[f32; 2]],

@@ -1,6 +1,7 @@
 //! Mirror of `shaders/cpg_scalars.wgsl`. Slots: 0 u·d, 1 u·w, 2 d·Wd, 3 changed faces, 4 Wd·w,
 //! 5 num, 6 α, 7 β, 8 restart.
 
+/// The CPU mirror of `cpg_scalars`: the same bindings and order of operations in f32.
 pub fn cpg_scalars(scalars: &mut [f32], stage: u32) {
     match stage {
         0 => {

@@ -1,5 +1,6 @@
 //! Mirror of `shaders/cpg_update.wgsl`: projection with status memory of r + α d.
 
+/// The CPU mirror of `cpg_update`: the same bindings and order of operations in f32.
 pub fn cpg_update(
     scalars: &[f32],
     d: &[[f32; 2]],

@@ -2,6 +2,7 @@
 
 use super::single_contact::project_cone;
 
+/// The CPU mirror of `jacobi_update`: the same bindings and order of operations in f32.
 pub fn jacobi_update(u: &[[f32; 2]], mu: &[f32], step: &[f32], r: &mut [[f32; 2]]) {
     for a in 0..mu.len() {
         let (ua, m, s) = (u[a], mu[a], step[a]);

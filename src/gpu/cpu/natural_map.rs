@@ -2,6 +2,7 @@
 
 use super::single_contact::project_cone;
 
+/// The CPU mirror of `natural_map`: the same bindings and order of operations in f32.
 pub fn natural_map(r: &[[f32; 2]], u: &[[f32; 2]], mu: &[f32], f: &mut [[f32; 2]]) {
     for a in 0..mu.len() {
         let (ra, ua, m) = (r[a], u[a], mu[a]);

@@ -5,6 +5,7 @@ use super::contact_gather::gather_one;
 use super::single_contact::solve_single_contact;
 use crate::gpu::layout::{MatrixFreeLayout, NO_ANTAGONIST};
 
+/// The CPU mirror of `nlgs_colour`: the same bindings and order of operations in f32.
 #[allow(clippy::too_many_arguments)]
 pub fn nlgs_colour(
     op: &MatrixFreeLayout,

@@ -4,6 +4,7 @@
 use super::single_contact::solve_single_contact;
 use crate::gpu::layout::BsrLayout;
 
+/// The CPU mirror of `nlgs_colour_bsr`: the same bindings and order of operations in f32.
 pub fn nlgs_colour_bsr(
     w: &BsrLayout,
     diag: &[[f32; 4]],

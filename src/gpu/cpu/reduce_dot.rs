@@ -20,6 +20,7 @@ pub fn n_partials(n: usize) -> usize {
     n.div_ceil(WG * PER_THREAD).max(1)
 }
 
+/// The CPU mirror of `reduce_dot`: the same bindings and order of operations in f32.
 pub fn reduce_dot(a: &[f32], b: &[f32]) -> Vec<f32> {
     let n = a.len();
     (0..n_partials(n))

@@ -2,6 +2,7 @@
 
 use super::reduce_dot::tree_sum;
 
+/// The CPU mirror of `reduce_final`: the same bindings and order of operations in f32.
 pub fn reduce_final(partials: &[f32]) -> f32 {
     let mut tree = [0.0f32; 256];
     for (t, slot) in tree.iter_mut().enumerate() {

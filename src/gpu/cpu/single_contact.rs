@@ -30,6 +30,7 @@ fn residual(w: [f32; 4], q: [f32; 2], m: f32, r: [f32; 2]) -> f32 {
     f[0] * f[0] + f[1] * f[1]
 }
 
+/// The exact single-contact solve in f32, as the kernels do it.
 pub fn solve_single_contact(w: [f32; 4], q: [f32; 2], m: f32) -> [f32; 2] {
     if q[0] >= 0.0 {
         return [0.0, 0.0];
