@@ -91,46 +91,10 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         None => bail!("the checkpoint is at step {start}, the scene's last: give --steps to go further"),
     };
     let last = start + steps;
-    if let Some(s) = a.solver {
-        scene.settings.solver = s;
-    }
-    if let Some(t) = a.tol {
-        if !(t.is_finite() && t > 0.0) {
-            bail!("--tol {t}: must be finite and > 0");
-        }
-        scene.settings.options.tol = t;
-    }
-    if let Some(c) = a.criterion {
-        scene.settings.options.criterion = c;
-    }
-    if let Some(m) = a.max_iter {
-        if m == 0 {
-            bail!("--max-iter must be at least 1");
-        }
-        scene.settings.options.max_iter = m;
-    }
+    apply_overrides(&mut scene, &a)?;
     set_threads(a.threads)?;
-    let vtk_every = match (a.vtk_every, scene.output.vtk) {
-        (Some(n), _) => n,
-        (None, true) => scene.output.every,
-        (None, false) => 0,
-    };
+    let (vtk_every, picture_step) = output_steps(&a, &scene, start, last)?;
     let first = start + 1;
-    if !a.dump_problem.is_empty() && scene.world.effects.rolling_resistance {
-        bail!("--dump-problem: the scene has rolling resistance (3 unknowns per contact); the fc2d format holds 2");
-    }
-    if let Some(&late) = a.dump_problem.iter().find(|&&k| k < first || k > last) {
-        bail!("--dump-problem {late}: the run has steps {first} to {last}");
-    }
-    let picture_step = match (a.picture_step, scene.output.picture_step) {
-        (Some(k), _) if k < first || k > last => bail!("--picture-step {k}: the run has steps {first} to {last}"),
-        (Some(k), _) => k,
-        (None, Some(k)) if k > last || k < first => {
-            eprintln!("warning: the scene's picture_step {k} is outside steps {first} to {last}: the picture is of step {last}");
-            last
-        }
-        (None, k) => k.unwrap_or(last),
-    };
     let rolling = scene.world.effects.rolling_resistance;
     let backend = choose_backend_for(a.device, scene.settings.solver, &scene.settings.options, rolling)?;
     let default_dir = match start {
@@ -168,9 +132,16 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         summary.solver,
         summary.tol
     );
-    let scene_name = scene.name.clone();
-    let checkpoint_every = scene.output.checkpoint_every;
-    let wall_forces = scene.output.wall_forces;
+    let per_step = PerStep {
+        dump_problem: a.dump_problem.clone(),
+        wall_forces: scene.output.wall_forces,
+        checkpoint_every: scene.output.checkpoint_every,
+        scene_name: scene.name.clone(),
+        fingerprint,
+        vtk_every,
+        last,
+        picture_step,
+    };
     let mut sim = Simulation::new(scene.world, scene.settings)?;
     sim.set_backend(backend)?;
     if let Some(c) = &restart {
@@ -180,7 +151,7 @@ pub fn run_command(a: RunArgs) -> Result<()> {
     for w in sim.check().with_context(|| format!("checking {}", a.scene.display()))? {
         eprintln!("warning: {w}");
     }
-    sim.keep_problems(!a.dump_problem.is_empty());
+    sim.keep_problems(!per_step.dump_problem.is_empty());
     let (mut output, cleared) = RunOutput::create(&out_dir)?;
     if cleared > 0 {
         eprintln!("removed {cleared} file(s) of an earlier run from {}", out_dir.display());
@@ -191,7 +162,7 @@ pub fn run_command(a: RunArgs) -> Result<()> {
             .expect("valid progress template"),
     );
     bar.enable_steady_tick(Duration::from_millis(500));
-    if vtk_every > 0 {
+    if per_step.vtk_every > 0 {
         output.vtk(&sim)?; // the start (step 0, or the checkpoint's step)
     }
     for _ in 0..steps {
@@ -211,12 +182,63 @@ pub fn run_command(a: RunArgs) -> Result<()> {
                 bail!("{}: {e}\n{kept} are in {}", a.scene.display(), out_dir.display());
             }
         };
-        output.record(&report, &sim.measures())?;
-        output.record_driven(&sim)?;
-        if wall_forces {
-            output.record_walls(&sim)?;
+        per_step.write(&sim, &report, &mut output, &mut summary, &bar)?;
+    }
+    bar.finish_and_clear();
+    finish_run(summary, output, &out_dir, diameter, a.strict)
+}
+
+/// The scene's solver settings as the command line overrides them.
+fn apply_overrides(scene: &mut scene::Scene, a: &RunArgs) -> Result<()> {
+    if let Some(s) = a.solver {
+        scene.settings.solver = s;
+    }
+    if let Some(t) = a.tol {
+        if !(t.is_finite() && t > 0.0) {
+            bail!("--tol {t}: must be finite and > 0");
         }
-        summary.add(&report);
+        scene.settings.options.tol = t;
+    }
+    if let Some(c) = a.criterion {
+        scene.settings.options.criterion = c;
+    }
+    if let Some(m) = a.max_iter {
+        if m == 0 {
+            bail!("--max-iter must be at least 1");
+        }
+        scene.settings.options.max_iter = m;
+    }
+    Ok(())
+}
+
+/// What is written after each step: its rows, a problem dump, a checkpoint, VTK, the picture.
+struct PerStep {
+    dump_problem: Vec<usize>,
+    wall_forces: bool,
+    checkpoint_every: usize,
+    scene_name: String,
+    /// The scene file's fingerprint (checkpoints only).
+    fingerprint: String,
+    vtk_every: usize,
+    last: usize,
+    picture_step: usize,
+}
+
+impl PerStep {
+    fn write(
+        &self,
+        sim: &Simulation,
+        report: &crate::stepping::StepReport,
+        output: &mut RunOutput,
+        summary: &mut RunSummary,
+        bar: &ProgressBar,
+    ) -> Result<()> {
+        output.record(report, &sim.measures())?;
+        output.record_driven(sim)?;
+        if self.wall_forces {
+            output.record_walls(sim)?;
+        }
+        summary.add(report);
         if !report.converged && summary.unconverged_steps <= WARNINGS_SHOWN {
             bar.suspend(|| {
                 eprintln!(
@@ -231,7 +253,7 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         }
         bar.set_message(format!("{} contacts, {} its, err {:.1e}", report.contacts, report.iterations, report.error));
         bar.inc(1);
-        if a.dump_problem.contains(&report.step) {
+        if self.dump_problem.contains(&report.step) {
             let path = output.dir.join(format!("problem_{:06}.dat", report.step));
             match sim.last_problem() {
                 Some(p) => {
@@ -241,21 +263,59 @@ pub fn run_command(a: RunArgs) -> Result<()> {
                 None => bar.suspend(|| eprintln!("warning: step {} has no contact: no problem to dump", report.step)),
             }
         }
-        if checkpoint_every > 0 && report.step % checkpoint_every == 0 {
+        if self.checkpoint_every > 0 && report.step.is_multiple_of(self.checkpoint_every) {
             let mut c = sim.checkpoint();
-            (c.scene, c.scene_fingerprint) = (scene_name.clone(), fingerprint.clone());
+            (c.scene, c.scene_fingerprint) = (self.scene_name.clone(), self.fingerprint.clone());
             write_checkpoint(&c, &output.dir.join(format!("checkpoint_{:06}.json", report.step)))?;
         }
-        if vtk_every > 0 && (report.step % vtk_every == 0 || report.step == last) {
-            output.vtk(&sim)?;
+        if self.vtk_every > 0 && (report.step.is_multiple_of(self.vtk_every) || report.step == self.last) {
+            output.vtk(sim)?;
         }
-        if report.step == picture_step {
+        if report.step == self.picture_step {
             let path = output.dir.join(format!("state_{:06}.png", report.step));
-            let frame = crate::io::picture::Frame::of(&sim);
+            let frame = crate::io::picture::Frame::of(sim);
             crate::io::picture::write_png(&frame, crate::io::picture::Colouring::Tag, 1200, &path)?;
         }
+        Ok(())
     }
-    bar.finish_and_clear();
+}
+
+/// Which steps write VTK (every how many; 0: none) and which is pictured, checked against the
+/// run's steps `start + 1 ..= last` (problem dumps too).
+fn output_steps(a: &RunArgs, scene: &scene::Scene, start: usize, last: usize) -> Result<(usize, usize)> {
+    let vtk_every = match (a.vtk_every, scene.output.vtk) {
+        (Some(n), _) => n,
+        (None, true) => scene.output.every,
+        (None, false) => 0,
+    };
+    let first = start + 1;
+    if !a.dump_problem.is_empty() && scene.world.effects.rolling_resistance {
+        bail!("--dump-problem: the scene has rolling resistance (3 unknowns per contact); the fc2d format holds 2");
+    }
+    if let Some(&late) = a.dump_problem.iter().find(|&&k| k < first || k > last) {
+        bail!("--dump-problem {late}: the run has steps {first} to {last}");
+    }
+    let picture_step = match (a.picture_step, scene.output.picture_step) {
+        (Some(k), _) if k < first || k > last => bail!("--picture-step {k}: the run has steps {first} to {last}"),
+        (Some(k), _) => k,
+        (None, Some(k)) if k > last || k < first => {
+            eprintln!("warning: the scene's picture_step {k} is outside steps {first} to {last}: the picture is of step {last}");
+            last
+        }
+        (None, k) => k.unwrap_or(last),
+    };
+    Ok((vtk_every, picture_step))
+}
+
+/// Closes the summary, says how the run went and writes the last files; `strict` makes missed
+/// tolerances an error.
+fn finish_run(
+    mut summary: RunSummary,
+    output: RunOutput,
+    out_dir: &std::path::Path,
+    diameter: f64,
+    strict: bool,
+) -> Result<()> {
     summary.close();
     summary.max_penetration_per_diameter = if diameter > 0.0 { summary.max_penetration / diameter } else { 0.0 };
     println!("{}", summary.line());
@@ -270,7 +330,7 @@ pub fn run_command(a: RunArgs) -> Result<()> {
     }
     output.finish(&summary)?;
     eprintln!("outputs in {}", out_dir.display());
-    if a.strict && summary.unconverged_steps > 0 {
+    if strict && summary.unconverged_steps > 0 {
         bail!("--strict: {} of {} steps missed tol {:.0e}", summary.unconverged_steps, summary.steps, summary.tol);
     }
     Ok(())
