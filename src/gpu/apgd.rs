@@ -66,10 +66,15 @@ pub fn solve(
     let partials = storage(ctx, "partials", &vec![0.0f32; partials_len(2 * nc)]);
     let gradient = gp.product(ctx, &y, &gp.q, &g);
     let restart_dot = Dot::new(ctx, k, &g, &diff, 2 * nc, &partials, &scalars, 0);
-    let step = bind(ctx, &k.apgd_step, &[&scalars, &g, &y, &gamma, &s, &next, &diff]);
-    let scalar = bind(ctx, &k.apgd_scalars, &[&scalars]);
-    let momentum = bind(ctx, &k.apgd_momentum, &[&scalars, &next, &gamma, &y]);
-    let rebox = bind(ctx, &k.apgd_rebox, &[&gp.mu, &gamma, &y, &s, &scalars]);
+    let step = bind(
+        ctx,
+        &k.apgd_step,
+        &[("scalars", &scalars), ("g", &g), ("y", &y), ("gamma", &gamma), ("s", &s), ("next", &next), ("diff", &diff)],
+    );
+    let scalar = bind(ctx, &k.apgd_scalars, &[("scalars", &scalars)]);
+    let momentum = bind(ctx, &k.apgd_momentum, &[("scalars", &scalars), ("next", &next), ("gamma", &gamma), ("y", &y)]);
+    let rebox =
+        bind(ctx, &k.apgd_rebox, &[("mu", &gp.mu), ("gamma", &gamma), ("y", &y), ("s", &s), ("scalars", &scalars)]);
     let wg = groups(nc);
     let every = opts.apgd_threshold_every.max(1);
     let count = Cell::new(0usize);

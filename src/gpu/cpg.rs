@@ -71,13 +71,36 @@ pub fn solve(
     let stages: Vec<(BindGroup, GpuBuffer)> = (0..3u32)
         .map(|s| {
             let u = uniform(ctx, "stage", &[s, 0, 0, 0]);
-            (bind(ctx, &k.cpg_scalars, &[&scalars, &u]), u)
+            (bind(ctx, &k.cpg_scalars, &[("scalars", &scalars), ("stage", &u)]), u)
         })
         .collect();
-    let restart = bind(ctx, &k.cpg_restart, &[&scalars, &w_buf, &d_buf]);
-    let update = bind(ctx, &k.cpg_update, &[&scalars, &d_buf, &gp.mu, &r_buf, &status_buf, &changed_buf]);
-    let gradient = bind(ctx, &k.cpg_gradient, &[&u_buf, &scale_buf, &d_buf, &status_buf, &gp.mu, &w_buf, &z_buf]);
-    let direction = bind(ctx, &k.cpg_direction, &[&scalars, &w_buf, &z_buf, &d_buf]);
+    let restart = bind(ctx, &k.cpg_restart, &[("scalars", &scalars), ("w", &w_buf), ("d", &d_buf)]);
+    let update = bind(
+        ctx,
+        &k.cpg_update,
+        &[
+            ("scalars", &scalars),
+            ("d", &d_buf),
+            ("mu", &gp.mu),
+            ("r", &r_buf),
+            ("status", &status_buf),
+            ("changed", &changed_buf),
+        ],
+    );
+    let gradient = bind(
+        ctx,
+        &k.cpg_gradient,
+        &[
+            ("u", &u_buf),
+            ("scale", &scale_buf),
+            ("d", &d_buf),
+            ("status", &status_buf),
+            ("mu", &gp.mu),
+            ("w", &w_buf),
+            ("z", &z_buf),
+        ],
+    );
+    let direction = bind(ctx, &k.cpg_direction, &[("scalars", &scalars), ("w", &w_buf), ("z", &z_buf), ("d", &d_buf)]);
     let g = groups(nc);
     // Start: u = W r + q, w = projected gradient, d = w (β = 0 in a fresh scalars buffer).
     submit(ctx, "cpg start", |pass| {

@@ -170,7 +170,7 @@ impl Checker {
         let scalars = storage(ctx, "check scalars", &[0.0f32; 4]);
         let partials = storage(ctx, "check partials", &vec![0.0f32; partials_len(2 * nc)]);
         let operator = gp.product(ctx, r_buf, &gp.q, &u);
-        let residual = bind(ctx, &kernels.natural_map, &[r_buf, &u, &gp.mu, &f]);
+        let residual = bind(ctx, &kernels.natural_map, &[("r", r_buf), ("u", &u), ("mu", &gp.mu), ("f", &f)]);
         let n = 2 * nc;
         let dots = [
             Dot::new(ctx, &kernels, &f, &f, n, &partials, &scalars, 0),

@@ -28,7 +28,8 @@ pub fn solve(
     let u_buf = storage(ctx, "u", &vec![[0.0f32; 2]; nc]);
     let step_buf = storage(ctx, "step", &step);
     let op = gp.product(ctx, &r_buf, &gp.q, &u_buf);
-    let update = bind(ctx, &kernels.jacobi_update, &[&u_buf, &gp.mu, &step_buf, &r_buf]);
+    let update =
+        bind(ctx, &kernels.jacobi_update, &[("u", &u_buf), ("mu", &gp.mu), ("step", &step_buf), ("r", &r_buf)]);
     iterate(ctx, p, &gp, opts, SolverKind::Jacobi, start, r, &r_buf, 1, |pass| {
         op.record(kernels, pass);
         dispatch(pass, &kernels.jacobi_update, &update, groups(nc));

@@ -8,6 +8,48 @@ use super::traffic;
 /// Invocations per workgroup of the element-wise kernels.
 pub const WORKGROUP: u32 = 64;
 
+/// A compiled kernel with the names of its bindings in binding order, read from its WGSL: the
+/// one place a binding is declared. [`bind`] binds buffers to it by name.
+pub struct Kernel {
+    /// The kernel's name (its file in shaders/).
+    pub name: &'static str,
+    pipeline: wgpu::ComputePipeline,
+    bindings: Vec<String>,
+}
+
+impl std::ops::Deref for Kernel {
+    type Target = wgpu::ComputePipeline;
+    fn deref(&self) -> &wgpu::ComputePipeline {
+        &self.pipeline
+    }
+}
+
+impl Kernel {
+    /// Its bindings' names, binding 0 first.
+    pub fn bindings(&self) -> &[String] {
+        &self.bindings
+    }
+}
+
+/// The names of the `@group(0) @binding(k) var… name` declarations of `wgsl`, by k; an error
+/// when a binding number is missing or repeated.
+pub fn binding_names(wgsl: &str) -> Result<Vec<String>, String> {
+    let mut found: Vec<(usize, String)> = Vec::new();
+    for line in wgsl.lines().map(str::trim).filter(|l| l.starts_with("@group(0) @binding(")) {
+        let rest = &line["@group(0) @binding(".len()..];
+        let (k, decl) = rest.split_once(')').ok_or_else(|| format!("unreadable binding: {line}"))?;
+        let k: usize = k.parse().map_err(|_| format!("unreadable binding number: {line}"))?;
+        let after_var = decl.split_once('>').map(|(_, r)| r).unwrap_or(decl).trim_start();
+        let name: String = after_var.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect();
+        found.push((k, name));
+    }
+    found.sort();
+    if found.iter().enumerate().any(|(k, (b, _))| *b != k) {
+        return Err(format!("bindings are not numbered 0..{}: {found:?}", found.len()));
+    }
+    Ok(found.into_iter().map(|(_, n)| n).collect())
+}
+
 fn pipeline(ctx: &GpuContext, name: &str, source: &str, constants: &[(&str, f64)]) -> wgpu::ComputePipeline {
     let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(name),
@@ -26,41 +68,41 @@ fn pipeline(ctx: &GpuContext, name: &str, source: &str, constants: &[(&str, f64)
 /// Pipelines of one specialisation (rotation, friction).
 pub struct Kernels {
     /// The `body_accumulate` kernel.
-    pub body_accumulate: wgpu::ComputePipeline,
+    pub body_accumulate: Kernel,
     /// The `contact_gather` kernel.
-    pub contact_gather: wgpu::ComputePipeline,
+    pub contact_gather: Kernel,
     /// The `bsr_product` kernel.
-    pub bsr_product: wgpu::ComputePipeline,
+    pub bsr_product: Kernel,
     /// The `jacobi_update` kernel.
-    pub jacobi_update: wgpu::ComputePipeline,
+    pub jacobi_update: Kernel,
     /// The `nlgs_colour` kernel.
-    pub nlgs_colour: wgpu::ComputePipeline,
+    pub nlgs_colour: Kernel,
     /// The `nlgs_colour_bsr` kernel.
-    pub nlgs_colour_bsr: wgpu::ComputePipeline,
+    pub nlgs_colour_bsr: Kernel,
     /// The `reduce_dot` kernel.
-    pub reduce_dot: wgpu::ComputePipeline,
+    pub reduce_dot: Kernel,
     /// The `reduce_final` kernel.
-    pub reduce_final: wgpu::ComputePipeline,
+    pub reduce_final: Kernel,
     /// The `cpg_scalars` kernel.
-    pub cpg_scalars: wgpu::ComputePipeline,
+    pub cpg_scalars: Kernel,
     /// The `cpg_restart` kernel.
-    pub cpg_restart: wgpu::ComputePipeline,
+    pub cpg_restart: Kernel,
     /// The `cpg_update` kernel.
-    pub cpg_update: wgpu::ComputePipeline,
+    pub cpg_update: Kernel,
     /// The `cpg_gradient` kernel.
-    pub cpg_gradient: wgpu::ComputePipeline,
+    pub cpg_gradient: Kernel,
     /// The `cpg_direction` kernel.
-    pub cpg_direction: wgpu::ComputePipeline,
+    pub cpg_direction: Kernel,
     /// The `apgd_step` kernel.
-    pub apgd_step: wgpu::ComputePipeline,
+    pub apgd_step: Kernel,
     /// The `apgd_scalars` kernel.
-    pub apgd_scalars: wgpu::ComputePipeline,
+    pub apgd_scalars: Kernel,
     /// The `apgd_momentum` kernel.
-    pub apgd_momentum: wgpu::ComputePipeline,
+    pub apgd_momentum: Kernel,
     /// The `apgd_rebox` kernel.
-    pub apgd_rebox: wgpu::ComputePipeline,
+    pub apgd_rebox: Kernel,
     /// The `natural_map` kernel.
-    pub natural_map: wgpu::ComputePipeline,
+    pub natural_map: Kernel,
 }
 
 /// The shared WGSL a kernel pulls in with `#import name` lines: written once, composed at load.
@@ -124,11 +166,12 @@ impl Kernels {
     pub fn new(ctx: &GpuContext, rotation: bool, friction: bool) -> Self {
         let flags = [("ROTATION", rotation as u8 as f64), ("FRICTION", friction as u8 as f64)];
         let k = |name: &str| {
-            let (_, source, specialised) =
+            let (name, source, specialised) =
                 KERNELS.iter().find(|(n, ..)| *n == name).expect("every pipeline of Kernels is listed in KERNELS");
             // The sources are fixed at build time, and a unit test composes every one.
             let source = compose(name, source).expect("the shared modules of shaders/shared/");
-            pipeline(ctx, name, &source, if *specialised { &flags } else { &[] })
+            let bindings = binding_names(&source).expect("bindings numbered from 0 (unit test)");
+            Kernel { name, pipeline: pipeline(ctx, name, &source, if *specialised { &flags } else { &[] }), bindings }
         };
         Self {
             body_accumulate: k("body_accumulate"),
@@ -182,8 +225,26 @@ fn filled(ctx: &GpuContext, label: &str, usage: wgpu::BufferUsages, bytes: &[u8]
     buffer
 }
 
-/// A bind group of `buffers` in binding order, each bound with its own length.
-pub fn bind(ctx: &GpuContext, pipeline: &wgpu::ComputePipeline, buffers: &[&GpuBuffer]) -> BindGroup {
+/// A bind group of `kernel` with each binding's buffer named as its WGSL names it (each bound
+/// with its own length). A binding left out or a name the kernel does not declare is a bug of
+/// the caller: it panics naming both, and the GPU tests run every binding.
+pub fn bind(ctx: &GpuContext, kernel: &Kernel, named: &[(&str, &GpuBuffer)]) -> BindGroup {
+    if let Some((extra, _)) = named.iter().find(|(n, _)| !kernel.bindings.iter().any(|b| b == n)) {
+        panic!("kernel {}: no binding named {extra:?} (it has {:?})", kernel.name, kernel.bindings);
+    }
+    let buffers: Vec<&GpuBuffer> = kernel
+        .bindings
+        .iter()
+        .map(|b| match named.iter().find(|(n, _)| n == b) {
+            Some((_, buffer)) => *buffer,
+            None => panic!("kernel {}: no buffer given for binding {b:?}", kernel.name),
+        })
+        .collect();
+    bind_in_order(ctx, kernel, &buffers)
+}
+
+/// A bind group of `buffers` in binding order (the raw test stages).
+pub fn bind_in_order(ctx: &GpuContext, pipeline: &wgpu::ComputePipeline, buffers: &[&GpuBuffer]) -> BindGroup {
     let entries: Vec<wgpu::BindGroupEntry> = buffers
         .iter()
         .enumerate()
@@ -289,6 +350,11 @@ mod tests {
                 assert!(!source.contains(item), "shaders/{name}.wgsl writes {item} itself");
             }
         }
+        let names = binding_names(
+            "@group(0) @binding(1) var<storage, read_write> r: array<f32>;\n@group(0) @binding(0) var<uniform> range: Range;",
+        );
+        assert_eq!(names.unwrap(), ["range", "r"]);
+        assert!(binding_names("@group(0) @binding(1) var<uniform> x: u32;").is_err(), "binding 0 is missing");
         let e = compose("k", "#import nowhere\n").unwrap_err();
         assert!(e.contains("kernel k") && e.contains("nowhere"), "{e}");
     }

@@ -59,15 +59,35 @@ pub fn solve(
             let order = storage(ctx, "order", &colouring.order);
             let v = storage(ctx, "v", &vec![[0.0f32; 4]; layout.inv_mass.len()]);
             // v = M⁻¹ Bᵀ r of the starting impulses, once.
-            let accumulate =
-                bind(ctx, &kernels.body_accumulate, &[contacts, body_start, body_list, inv_mass, &r_buf, &v]);
+            let accumulate = bind(
+                ctx,
+                &kernels.body_accumulate,
+                &[
+                    ("contacts", contacts),
+                    ("body_start", body_start),
+                    ("body_list", body_list),
+                    ("inv_mass", inv_mass),
+                    ("r", &r_buf),
+                    ("v", &v),
+                ],
+            );
             submit(ctx, "nlgs start", |pass| {
                 dispatch(pass, &kernels.body_accumulate, &accumulate, groups(layout.inv_mass.len()))
             });
             let per_colour: Vec<(BindGroup, u32)> = ranges(&colouring)
                 .into_iter()
                 .map(|(range, count)| {
-                    let buffers = [contacts, inv_mass, &diag_buf, &gp.q, &gp.mu, &order, &r_buf, &v, &range];
+                    let buffers = [
+                        ("contacts", contacts),
+                        ("inv_mass", inv_mass),
+                        ("diag", &diag_buf),
+                        ("q", &gp.q),
+                        ("mu", &gp.mu),
+                        ("order", &order),
+                        ("r", &r_buf),
+                        ("v", &v),
+                        ("range", &range),
+                    ];
                     (bind(ctx, &kernels.nlgs_colour, &buffers), count)
                 })
                 .collect();
@@ -79,7 +99,17 @@ pub fn solve(
             let per_colour: Vec<(BindGroup, u32)> = ranges(&colouring)
                 .into_iter()
                 .map(|(range, count)| {
-                    let buffers = [row_ptr, cols, blocks, &diag_buf, &gp.q, &gp.mu, &order, &r_buf, &range];
+                    let buffers = [
+                        ("row_ptr", row_ptr),
+                        ("cols", cols),
+                        ("blocks", blocks),
+                        ("diag", &diag_buf),
+                        ("q", &gp.q),
+                        ("mu", &gp.mu),
+                        ("order", &order),
+                        ("r", &r_buf),
+                        ("range", &range),
+                    ];
                     (bind(ctx, &kernels.nlgs_colour_bsr, &buffers), count)
                 })
                 .collect();

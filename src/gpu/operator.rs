@@ -92,14 +92,29 @@ impl GpuProblem {
                 GpuOperator::MatrixFree {
                     bodies: layout.inv_mass.len(),
                     contacts: layout.contacts.len(),
-                    accumulate: bind(ctx, &k.body_accumulate, &[contacts, body_start, body_list, inv_mass, r, &v]),
-                    gather: bind(ctx, &k.contact_gather, &[contacts, &v, q, u]),
+                    accumulate: bind(
+                        ctx,
+                        &k.body_accumulate,
+                        &[
+                            ("contacts", contacts),
+                            ("body_start", body_start),
+                            ("body_list", body_list),
+                            ("inv_mass", inv_mass),
+                            ("r", r),
+                            ("v", &v),
+                        ],
+                    ),
+                    gather: bind(ctx, &k.contact_gather, &[("contacts", contacts), ("v", &v), ("q", q), ("u", u)]),
                     _v: v,
                 }
             }
             GpuMatrix::Sparse { layout, row_ptr, cols, blocks } => GpuOperator::Sparse {
                 contacts: layout.row_ptr.len() - 1,
-                product: bind(ctx, &k.bsr_product, &[row_ptr, cols, blocks, r, q, u]),
+                product: bind(
+                    ctx,
+                    &k.bsr_product,
+                    &[("row_ptr", row_ptr), ("cols", cols), ("blocks", blocks), ("r", r), ("q", q), ("u", u)],
+                ),
             },
         }
     }

@@ -31,8 +31,8 @@ impl Dot {
         let groups = n_partials(n) as u32;
         let len = uniform(ctx, "len", &[n as u32, 0, 0, 0]);
         let job = uniform(ctx, "job", &[groups, slot, 0, 0]);
-        let first = bind(ctx, &k.reduce_dot, &[a, b, partials, &len]);
-        let second = bind(ctx, &k.reduce_final, &[partials, scalars, &job]);
+        let first = bind(ctx, &k.reduce_dot, &[("a", a), ("b", b), ("partials", partials), ("len", &len)]);
+        let second = bind(ctx, &k.reduce_final, &[("partials", partials), ("scalars", scalars), ("job", &job)]);
         Self { first, second, groups, _uniforms: [len, job] }
     }
 

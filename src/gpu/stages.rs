@@ -2,7 +2,7 @@
 //! the CPU mirrors in [`super::cpu`], stage by stage.
 
 use super::context::{GpuContext, GpuError};
-use super::kernels::{bind, dispatch, groups, read_back, storage, submit, Kernels};
+use super::kernels::{bind, bind_in_order, dispatch, groups, read_back, storage, submit, Kernel, Kernels};
 use super::layout::{BsrLayout, MatrixFreeLayout};
 use super::pool::GpuBuffer;
 
@@ -11,6 +11,11 @@ pub type ImpulsesAndVelocities = (Vec<[f32; 2]>, Vec<[f32; 4]>);
 
 fn run(ctx: &GpuContext, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, n: usize) {
     submit(ctx, "stage", |pass| dispatch(pass, pipeline, group, groups(n)));
+}
+
+/// `buffers` with the binding names of a kernel's WGSL, in the same order.
+fn named<'a>(buffers: &'a [GpuBuffer], names: &[&'static str]) -> Vec<(&'static str, &'a GpuBuffer)> {
+    names.iter().copied().zip(buffers).collect()
 }
 
 /// Runs `body_accumulate` alone (compared with its mirror in the tests).
@@ -24,7 +29,8 @@ pub fn body_accumulate(ctx: &GpuContext, op: &MatrixFreeLayout, r: &[[f32; 2]]) 
         storage(ctx, "r", r),
         storage(ctx, "v", &vec![[0.0f32; 4]; op.inv_mass.len()]),
     ];
-    let group = bind(ctx, &k.body_accumulate, &bufs.iter().collect::<Vec<_>>());
+    let group =
+        bind(ctx, &k.body_accumulate, &named(&bufs, &["contacts", "body_start", "body_list", "inv_mass", "r", "v"]));
     run(ctx, &k.body_accumulate, &group, op.inv_mass.len());
     read_back(ctx, &bufs[5], op.inv_mass.len()).map_err(GpuError::Runtime)
 }
@@ -43,7 +49,7 @@ pub fn contact_gather(
         storage(ctx, "q", q),
         storage(ctx, "u", &vec![[0.0f32; 2]; q.len()]),
     ];
-    let group = bind(ctx, &k.contact_gather, &bufs.iter().collect::<Vec<_>>());
+    let group = bind(ctx, &k.contact_gather, &named(&bufs, &["contacts", "v", "q", "u"]));
     run(ctx, &k.contact_gather, &group, q.len());
     read_back(ctx, &bufs[3], q.len()).map_err(GpuError::Runtime)
 }
@@ -59,7 +65,7 @@ pub fn bsr_product(ctx: &GpuContext, w: &BsrLayout, r: &[[f32; 2]], q: &[[f32; 2
         storage(ctx, "q", q),
         storage(ctx, "u", &vec![[0.0f32; 2]; q.len()]),
     ];
-    let group = bind(ctx, &k.bsr_product, &bufs.iter().collect::<Vec<_>>());
+    let group = bind(ctx, &k.bsr_product, &named(&bufs, &["row_ptr", "cols", "blocks", "r", "q", "u"]));
     run(ctx, &k.bsr_product, &group, q.len());
     read_back(ctx, &bufs[5], q.len()).map_err(GpuError::Runtime)
 }
@@ -74,7 +80,7 @@ pub fn jacobi_update(
 ) -> Result<Vec<[f32; 2]>, GpuError> {
     let k = ctx.kernels(true, true);
     let bufs = [storage(ctx, "u", u), storage(ctx, "mu", mu), storage(ctx, "step", step), storage(ctx, "r", r)];
-    let group = bind(ctx, &k.jacobi_update, &bufs.iter().collect::<Vec<_>>());
+    let group = bind(ctx, &k.jacobi_update, &named(&bufs, &["u", "mu", "step", "r"]));
     run(ctx, &k.jacobi_update, &group, mu.len());
     read_back(ctx, &bufs[3], mu.len()).map_err(GpuError::Runtime)
 }
@@ -105,8 +111,8 @@ pub fn nlgs_colour(
         storage(ctx, "r", r),
         storage(ctx, "v", v),
     ];
-    let mut all: Vec<&GpuBuffer> = bufs.iter().collect();
-    all.push(&range);
+    let mut all = named(&bufs, &["contacts", "inv_mass", "diag", "q", "mu", "order", "r", "v"]);
+    all.push(("range", &range));
     let group = bind(ctx, &k.nlgs_colour, &all);
     run(ctx, &k.nlgs_colour, &group, count as usize);
     Ok((
@@ -140,8 +146,8 @@ pub fn nlgs_colour_bsr(
         storage(ctx, "order", &colouring.order),
         storage(ctx, "r", r),
     ];
-    let mut all: Vec<&GpuBuffer> = bufs.iter().collect();
-    all.push(&range);
+    let mut all = named(&bufs, &["row_ptr", "cols", "blocks", "diag", "q", "mu", "order", "r"]);
+    all.push(("range", &range));
     let group = bind(ctx, &k.nlgs_colour_bsr, &all);
     run(ctx, &k.nlgs_colour_bsr, &group, count as usize);
     read_back(ctx, &bufs[7], r.len()).map_err(GpuError::Runtime)
@@ -152,7 +158,7 @@ pub fn nlgs_colour_bsr(
 /// kernels (reductions, CPG stages) against their mirrors.
 pub fn run_raw(
     ctx: &GpuContext,
-    pick: fn(&Kernels) -> &wgpu::ComputePipeline,
+    pick: fn(&Kernels) -> &Kernel,
     buffers: &[&[u8]],
     uniforms: &[&[u8]],
     workgroups: u32,
@@ -163,7 +169,7 @@ pub fn run_raw(
     let bufs: Vec<GpuBuffer> = buffers.iter().map(|b| storage(ctx, "raw", b)).collect();
     let unis: Vec<GpuBuffer> = uniforms.iter().map(|u| super::kernels::uniform(ctx, "raw", u)).collect();
     let all: Vec<&GpuBuffer> = bufs.iter().chain(unis.iter()).collect();
-    let group = bind(ctx, pipeline, &all);
+    let group = bind_in_order(ctx, pipeline, &all);
     submit(ctx, "stage", |pass| dispatch(pass, pipeline, &group, workgroups));
     read.iter().map(|&i| read_back::<u8>(ctx, &bufs[i], buffers[i].len()).map_err(GpuError::Runtime)).collect()
 }

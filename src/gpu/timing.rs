@@ -38,7 +38,7 @@ pub fn kernel_times(ctx: &GpuContext, p: &ContactProblem, n: usize) -> Result<Ke
     let step =
         storage(ctx, "step", &p.w.diag_blocks().iter().map(|d| (1.0 / (d[0] + d[3])) as f32).collect::<Vec<_>>());
     let op = gp.product(ctx, &r, &gp.q, &u);
-    let update = bind(ctx, &kernels.jacobi_update, &[&u, &gp.mu, &step, &r]);
+    let update = bind(ctx, &kernels.jacobi_update, &[("u", &u), ("mu", &gp.mu), ("step", &step), ("r", &r)]);
     run(ctx, 3, |pass| op.record(kernels, pass))?; // warm-up: pipeline creation, first-use costs
     let product = run(ctx, n, |pass| op.record(kernels, pass))?;
     let jacobi_iteration = run(ctx, n, |pass| {
