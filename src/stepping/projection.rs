@@ -80,7 +80,13 @@ pub(super) fn project_positions(
     // (the largest |q|) tied to the corrections, not to the widest open contact.
     let cap = 10.0 * (0..contacts.len()).map(excess).fold(0.0, f64::max);
     // Positions are projected along the (n, t) rows only: rolling rows resist spins, not overlaps.
-    let op = &op.without_rolling();
+    let plain;
+    let op = if op.has_rolling() {
+        plain = op.without_rolling();
+        &plain
+    } else {
+        op
+    };
     let mut q = vec![0.0; 2 * contacts.len()];
     for a in 0..contacts.len() {
         q[2 * a] = (-excess(a)).min(cap);
