@@ -96,6 +96,12 @@ fn solve_command_writes_the_report_and_fails_cleanly_on_bad_input() {
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("missing.dat"));
     let out = moreau().arg("solve").arg(&file).args(["--tol", "nan"]).output().unwrap();
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--tol"));
+    for k in ["0", "fast", "-1"] {
+        let out =
+            moreau().arg("solve").arg(&file).args(["--solver", "latin", &format!("--latin-k={k}")]).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains("--latin-k") && err.contains("auto"), "{k}: {err}");
+    }
 }
 
 /// Inputs that used to panic or abort now fail with a message naming the problem and exit 2.

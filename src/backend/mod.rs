@@ -328,6 +328,7 @@ fn solve_mixed(
         history,
         stop: cpu.stop,
         stop_reason: format!("gpu (f32): {}; cpu (f64): {}", gpu.stop_reason, cpu.stop_reason),
+        notes: cpu.notes,
         parts,
         gpu_dispatches: 0,
         gpu_bytes: 0,

@@ -9,7 +9,7 @@ use crate::backend::Backend;
 use crate::io::report::{summary_line, SolveOutput};
 use crate::io::siconos::{read_fc2d, write_fc2d, Storage};
 use crate::problem::generate;
-use crate::solvers::{self, Ordering, SolverKind, SolverOptions, StopCriterion};
+use crate::solvers::{self, LatinK, Ordering, SolverKind, SolverOptions, StopCriterion};
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 use std::path::PathBuf;
@@ -67,9 +67,11 @@ struct SolveArgs {
     /// Projected Jacobi relaxation.
     #[arg(long, default_value_t = SolverOptions::default().jacobi_omega)]
     jacobi_omega: f64,
-    /// LATIN search direction, as a multiple of diag(W).
-    #[arg(long, default_value_t = SolverOptions::default().latin_k)]
-    latin_k: f64,
+    /// LATIN search direction, as a multiple of diag(W), or `auto`: without friction
+    /// √(λ_min λ_max) of the scaled W on the contacts expected closed (a few Lanczos
+    /// products), with friction 1.
+    #[arg(long, default_value = "auto")]
+    latin_k: LatinK,
     /// LATIN: one k for all, `--latin-k` times the mean of diag(W).
     #[arg(long)]
     latin_k_mean: bool,
@@ -401,6 +403,9 @@ fn solve_command(a: SolveArgs) -> Result<()> {
     let adapter = backend.adapter_name();
     let device = backend.name();
     println!("{}", summary_line(&report, device, a.tol));
+    for note in &report.notes {
+        println!("  {note}");
+    }
     if !report.converged {
         eprintln!("warning: {} did not converge: {}", report.solver, report.stop_reason);
     }

@@ -139,6 +139,7 @@ pub fn iterate(
             stop
         },
         stop_reason,
+        notes: Vec::new(),
         parts: Vec::new(),
         gpu_dispatches: 0,
         gpu_bytes: 0,

@@ -13,6 +13,7 @@ pub mod delassus;
 pub mod generate;
 pub mod matrix_free;
 pub mod residual;
+pub mod spectrum;
 
 pub use block_sparse::BlockSparse;
 pub use delassus::Delassus;

@@ -42,8 +42,16 @@ struct SolverSpec {
     name: Option<String>,
     tol: Option<f64>,
     max_iter: Option<usize>,
-    latin_k: Option<f64>,
+    latin_k: Option<LatinKSpec>,
     latin_k_mean: Option<bool>,
+}
+
+/// `latin_k = 0.125` or `latin_k = "auto"`.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum LatinKSpec {
+    Factor(f64),
+    Named(String),
 }
 
 #[derive(Deserialize)]
@@ -105,11 +113,12 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<PunchScene, SceneError>
             }
             options.max_iter = m;
         }
-        if let Some(k) = spec.latin_k {
-            if !(k.is_finite() && k > 0.0) {
-                return cx.err(s.span(), "solver.latin_k", format!("{k} must be finite and > 0"));
-            }
-            options.latin_k = k;
+        if let Some(k) = &spec.latin_k {
+            let text = match k {
+                LatinKSpec::Factor(f) => f.to_string(),
+                LatinKSpec::Named(name) => name.clone(),
+            };
+            options.latin_k = text.parse().or_else(|m| cx.err(s.span(), "solver.latin_k", m))?;
         }
         options.latin_k_mean = spec.latin_k_mean.unwrap_or(false);
     }

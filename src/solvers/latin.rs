@@ -7,14 +7,52 @@
 //!   the diagonal `k` decouples Signorini from the tangential law: with `σ = z − w/k`,
 //!   `ẑ_n = max(σ_n, 0)`, `ẑ_t = clamp(σ_t, ±μ ẑ_n)`, `ŵ = k (ẑ − σ)`.
 //!
-//! `k = latin_k · diag(W)` per component (compliance units), or one `k = latin_k · mean diag(W)`
-//! with `latin_k_mean` (the founding paper offers both). The returned impulse is `ẑ`, which
-//! always lies in the cone.
+//! `k = factor · diag(W)` per component (compliance units), or one `k = factor · mean diag(W)`
+//! with `latin_k_mean` (the founding paper offers both). The factor is given, or chosen
+//! ([`LatinK::Auto`]): without friction the problem is a QP and the augmented-Lagrangian optimum
+//! `√(λ_min λ_max)` of `W` scaled by that basis, on the contacts expected closed, predicts the
+//! best factor (a few Lanczos products); with friction it does not (BENCHMARKS.md: 10–100× below
+//! the best factor, which itself moves from 0.25 to 4 between two steps of one flow), so the
+//! factor stays 1. The returned impulse is `ẑ`, which always lies in the cone.
 
 use super::conjugate_gradient::ConjugateGradient;
 use super::monitor::Monitor;
 use super::{SolveReport, SolverKind, SolverOptions};
-use crate::problem::{norm, ContactProblem};
+use crate::problem::{norm, spectrum, ContactProblem};
+
+/// LATIN's search-direction factor: given, or chosen by the solver from the problem.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub enum LatinK {
+    /// `k = factor × diag(W)` (or × its mean).
+    Factor(f64),
+    /// Frictionless: `√(λ_min λ_max)` of the scaled `W` on the contacts expected closed; with
+    /// friction: 1.
+    Auto,
+}
+
+impl std::str::FromStr for LatinK {
+    type Err = String;
+
+    /// `auto` or a factor, finite and > 0.
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "auto" => Ok(LatinK::Auto),
+            _ => match s.parse::<f64>() {
+                Ok(f) if f.is_finite() && f > 0.0 => Ok(LatinK::Factor(f)),
+                _ => Err(format!("{s}: expected `auto` or a factor, finite and > 0")),
+            },
+        }
+    }
+}
+
+impl std::fmt::Display for LatinK {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LatinK::Factor(x) => write!(f, "{x}"),
+            LatinK::Auto => f.write_str("auto"),
+        }
+    }
+}
 
 /// Solves from `r0` by LATIN.
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>) -> SolveReport {
@@ -22,8 +60,19 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>) -> SolveRep
     let n = 2 * nc;
     let diag: Vec<f64> = p.w.diag_blocks().iter().flat_map(|d| [d[0], if d[3] > 0.0 { d[3] } else { d[0] }]).collect();
     let mean = diag.iter().sum::<f64>() / diag.len().max(1) as f64;
-    let k: Vec<f64> = diag.iter().map(|&d| opts.latin_k * if opts.latin_k_mean { mean } else { d }).collect();
+    let basis: Vec<f64> = diag.iter().map(|&d| if opts.latin_k_mean { mean } else { d }).collect();
     let mut monitor = Monitor::new(p, opts, SolverKind::Latin, &r0);
+    let factor = match opts.latin_k {
+        LatinK::Factor(f) => f,
+        LatinK::Auto => {
+            let (factor, why, products) = automatic_factor(p, &basis, &r0);
+            monitor.add_setup_products(products);
+            let of = if opts.latin_k_mean { "mean diag(W)" } else { "diag(W)" };
+            monitor.note(format!("LATIN search direction k = {factor:.3e} × {of} ({why})"));
+            factor
+        }
+    };
+    let k: Vec<f64> = basis.iter().map(|b| factor * b).collect();
     let mut z = r0;
     let mut w = p.velocity(&z);
     monitor.w_products += 1;
@@ -59,6 +108,44 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>) -> SolveRep
         }
     }
     monitor.finish(z_hat)
+}
+
+/// Lanczos steps of the automatic search direction (each one product with `W`).
+const LANCZOS_STEPS: usize = 30;
+
+/// The factor of [`LatinK::Auto`], why, and the products spent. Without friction:
+/// `√(λ_min λ_max)` of `K^{-1/2} W K^{-1/2}` (`K` = `basis`) on the normals expected to carry
+/// impulse — closed in `r0`, or on a cold start approaching (`q_n < 0`), or all of them — and 1
+/// when the estimate fails. With friction: 1.
+fn automatic_factor(p: &ContactProblem, basis: &[f64], r0: &[f64]) -> (f64, String, usize) {
+    if !p.is_frictionless() {
+        return (1.0, "friction: the frictionless optimum does not carry over".into(), 0);
+    }
+    let nc = p.n_contacts();
+    let warm = (0..nc).any(|a| r0[2 * a] > 0.0);
+    let mut active: Vec<bool> = (0..nc).map(|a| if warm { r0[2 * a] > 0.0 } else { p.q[2 * a] < 0.0 }).collect();
+    if !active.contains(&true) {
+        active.iter_mut().for_each(|x| *x = true);
+    }
+    let mask: Vec<f64> = (0..2 * nc).map(|i| f64::from(u8::from(i % 2 == 0 && active[i / 2]))).collect();
+    let scale: Vec<f64> = basis.iter().zip(&mask).map(|(b, m)| m / b.sqrt()).collect();
+    // A fixed pseudo-random start (no special structure to hide an end of the spectrum).
+    let start: Vec<f64> = (0..2 * nc)
+        .map(|i| mask[i] * (0.5 + ((i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 11) as f64 / (1u64 << 53) as f64))
+        .collect();
+    let mut x = vec![0.0; 2 * nc];
+    let apply = |v: &[f64], out: &mut [f64]| {
+        x.iter_mut().zip(v.iter().zip(&scale)).for_each(|(x, (v, s))| *x = v * s);
+        p.w.apply(&x, out);
+        out.iter_mut().zip(&scale).for_each(|(o, s)| *o *= s);
+    };
+    match spectrum::extreme_eigenvalues(2 * nc, apply, &start, LANCZOS_STEPS) {
+        Some((lo, hi, products)) if lo > 0.0 && hi.is_finite() => {
+            ((lo * hi).sqrt(), format!("√(λ_min λ_max), λ in [{lo:.3e}, {hi:.3e}]"), products)
+        }
+        Some((_, _, products)) => (1.0, "no positive spectrum estimate".into(), products),
+        None => (1.0, "no spectrum estimate".into(), 0),
+    }
 }
 
 /// Exact projection of `(z, w)` onto the contact law along the search direction `k`.

@@ -25,6 +25,7 @@ pub mod nlgs;
 pub mod stopping;
 pub mod truncated_newton;
 
+pub use latin::LatinK;
 pub use stopping::StopReason;
 
 use crate::problem::ContactProblem;
@@ -205,9 +206,10 @@ pub struct SolverOptions {
     pub seed: u64,
     /// Projected Jacobi relaxation (step = ω / mean diagonal of the contact block).
     pub jacobi_omega: f64,
-    /// LATIN search direction: `k = latin_k · diag(W_αα)` per component (compliance units).
-    pub latin_k: f64,
-    /// LATIN: one `k = latin_k · mean(diag W)` for every component instead of the diagonal.
+    /// LATIN search direction: `k = factor · diag(W_αα)` per component (compliance units), the
+    /// factor given or chosen by the solver.
+    pub latin_k: LatinK,
+    /// LATIN: one `k = factor · mean(diag W)` for every component instead of the diagonal.
     pub latin_k_mean: bool,
     /// APGD: iterations between two updates of the Tresca thresholds `s = μ r_n`.
     pub apgd_threshold_every: usize,
@@ -229,7 +231,7 @@ impl Default for SolverOptions {
             ordering: Ordering::Forward,
             seed: 0,
             jacobi_omega: 0.5,
-            latin_k: 1.0,
+            latin_k: LatinK::Auto,
             latin_k_mean: false,
             apgd_threshold_every: 10,
             history_every: 0,
@@ -254,11 +256,15 @@ impl SolverOptions {
     /// Checks every option a solver reads, before any work.
     pub fn validate(&self) -> Result<(), OptionError> {
         let positive = "must be finite and > 0";
+        let factor = match self.latin_k {
+            LatinK::Factor(f) => f,
+            LatinK::Auto => 1.0,
+        };
         let checks: [(&'static str, f64, bool, &'static str); 4] = [
             ("tol", self.tol, self.tol.is_finite() && self.tol > 0.0, positive),
             ("omega", self.omega, self.omega > 0.0 && self.omega < 2.0, "the NLGS relaxation must lie in (0, 2)"),
             ("jacobi_omega", self.jacobi_omega, self.jacobi_omega.is_finite() && self.jacobi_omega > 0.0, positive),
-            ("latin_k", self.latin_k, self.latin_k.is_finite() && self.latin_k > 0.0, positive),
+            ("latin_k", factor, factor.is_finite() && factor > 0.0, positive),
         ];
         if let Some(&(name, value, _, rule)) = checks.iter().find(|c| !c.2) {
             return Err(OptionError { name, value: value.to_string(), rule });
@@ -304,6 +310,8 @@ pub struct SolveReport {
     pub stop: StopReason,
     /// Why the solve stopped, in words.
     pub stop_reason: String,
+    /// What the solver chose on its own (LATIN's automatic search direction), in words.
+    pub notes: Vec<String>,
     /// A solve split across devices (mixed precision: f32 on the GPU, then f64 on the CPU) lists
     /// each part here; empty for a solve on one device.
     pub parts: Vec<SolvePart>,

@@ -44,6 +44,7 @@ pub struct Monitor<'a> {
     iterates: Vec<Vec<f64>>,
     /// The checked iterate with the smallest judged error, returned if the solve does not converge.
     best: Option<(f64, Vec<f64>)>,
+    notes: Vec<String>,
 }
 
 impl<'a> Monitor<'a> {
@@ -70,7 +71,19 @@ impl<'a> Monitor<'a> {
             scratch_check: None,
             iterates: Vec::new(),
             best: None,
+            notes: Vec::new(),
         }
+    }
+
+    /// Counts `k` products spent before the first iteration (set-up, not an iteration's work).
+    pub fn add_setup_products(&mut self, k: usize) {
+        self.w_products += k;
+        self.products_seen += k;
+    }
+
+    /// Records something the solver chose on its own, for the report.
+    pub fn note(&mut self, line: String) {
+        self.notes.push(line);
     }
 
     /// Counts `k` iterations done outside [`Self::observe`] (a batch of sweeps observed once).
@@ -269,6 +282,7 @@ impl<'a> Monitor<'a> {
             history: self.history,
             stop,
             stop_reason: detail,
+            notes: self.notes,
             parts: Vec::new(),
             gpu_dispatches: 0,
             gpu_bytes: 0,

@@ -5,7 +5,7 @@
 use std::fmt;
 
 use super::{dual_cg, Lcp, PunchModel, StructureError};
-use crate::solvers::{solve, SolverKind, SolverOptions};
+use crate::solvers::{solve, LatinK, SolverKind, SolverOptions};
 
 /// A solver of the structural problem: a granular solver on the primal LCP, or the dual CG.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -231,7 +231,7 @@ pub fn latin_k_sweep(problems: &PunchProblems, factors: &[f64], tol: f64, max_it
             let opts = SolverOptions {
                 tol,
                 max_iter,
-                latin_k: factor,
+                latin_k: LatinK::Factor(factor),
                 latin_k_mean: !per_contact_diagonal,
                 ..SolverOptions::default()
             };

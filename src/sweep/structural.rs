@@ -3,7 +3,7 @@
 //! work-precision runs and with their energy-norm errors.
 
 use super::Run;
-use crate::solvers::{HistoryPoint, SolverKind, SolverOptions};
+use crate::solvers::{HistoryPoint, LatinK, SolverKind, SolverOptions};
 use crate::structure::study::{latin_k_sweep, run, LatinKRow, PunchProblems, StructuralRun, StructuralSolver};
 
 /// What the study found.
@@ -47,8 +47,14 @@ pub fn structural_study(
         solvers.iter().map(|&s| (s.name().to_string(), s, opts.clone())).collect();
     let latin = StructuralSolver::Primal(SolverKind::Latin);
     if let (Some(b), true) = (best_factor(&latin_k, false), solvers.contains(&latin)) {
-        let best = SolverOptions { latin_k: b.factor, latin_k_mean: true, ..opts.clone() };
+        let best = SolverOptions { latin_k: LatinK::Factor(b.factor), latin_k_mean: true, ..opts.clone() };
         labelled.push((format!("latin k={}·mean", b.factor), latin, best));
+    }
+    if solvers.contains(&latin) {
+        // The automatic factor and the fixed factor 1 side by side (one of them is `latin`'s).
+        let other = if opts.latin_k == LatinK::Auto { LatinK::Factor(1.0) } else { LatinK::Auto };
+        let mean = if opts.latin_k_mean { "·mean" } else { "" };
+        labelled.push((format!("latin k={other}{mean}"), latin, SolverOptions { latin_k: other, ..opts.clone() }));
     }
     let mut runs = Vec::new();
     let mut energy = Vec::new();
