@@ -38,6 +38,8 @@ fn sweep_writes_work_precision_data_profiles_and_a_table() {
             "1e-2,1e-4,1e-6",
             "--max-iter",
             "5000",
+            "--profile-tol",
+            "1e-4,1e-6",
             "--out",
         ])
         .arg(&out)
@@ -64,9 +66,13 @@ fn sweep_writes_work_precision_data_profiles_and_a_table() {
         let its: Vec<usize> = key.iter().map(|r| r[col("iterations")].parse().unwrap()).collect();
         assert!(its.windows(2).all(|w| w[0] <= w[1]), "{key:?}");
     }
-    for f in ["histories.csv", "profile.csv", "time_to_tol.md"] {
+    for f in ["histories.csv", "profile.csv", "profile_1e-4.csv", "profile_1e-6.csv", "time_to_tol.md"] {
         assert!(out.join(f).exists(), "{f} missing");
     }
+    // The first profile is also written under the plain name; the two tolerances differ.
+    let read = |f: &str| std::fs::read_to_string(out.join(f)).unwrap();
+    assert_eq!(read("profile.csv"), read("profile_1e-4.csv"));
+    assert_ne!(read("profile_1e-4.csv"), read("profile_1e-6.csv"));
     let table = std::fs::read_to_string(out.join("time_to_tol.md")).unwrap();
     assert!(table.contains("| lattice | nlgs | cpu |") && table.contains("1e-6"), "{table}");
     if font_available() {

@@ -45,8 +45,9 @@ enum GeneratedProblem {
 struct SolveArgs {
     /// Problem file (Siconos fc2d format).
     file: PathBuf,
-    #[arg(long, value_enum, default_value_t = SolverKind::Nlgs)]
-    solver: SolverKind,
+    /// Default: nlgs-newton at tolerances of 1e-6 and below (unless --device gpu), nlgs above.
+    #[arg(long, value_enum)]
+    solver: Option<SolverKind>,
     #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
     device: DeviceChoice,
     /// Tolerance on the natural-map error (or LMGC90's criterion when --criterion says so).
@@ -350,6 +351,21 @@ fn check_command(path: &std::path::Path, strict: bool) -> Result<()> {
     Ok(())
 }
 
+/// Tolerances from which `moreau solve` defaults to NLGS–Newton: over the problem set it solves
+/// as many problems as NLGS at 1e-6 and more at 1e-8, and is the fastest on the largest
+/// (BENCHMARKS.md, performance profiles); above, plain NLGS wins on fixed costs.
+const TIGHT_TOL: f64 = 1e-6;
+
+/// The solver of `moreau solve` when none is named: NLGS–Newton at tight tolerances on the CPU,
+/// NLGS otherwise (it alone runs on the GPU).
+fn default_solver(tol: f64, device: DeviceChoice) -> SolverKind {
+    if tol <= TIGHT_TOL && device != DeviceChoice::Gpu {
+        SolverKind::NlgsNewton
+    } else {
+        SolverKind::Nlgs
+    }
+}
+
 /// Picks the device for solves of `solver` with `opts` (the backend decides) and says which.
 pub(crate) fn choose_backend(choice: DeviceChoice, solver: SolverKind, opts: &SolverOptions) -> Result<Backend> {
     choose_backend_for(choice, solver, opts, false)
@@ -398,8 +414,13 @@ fn solve_command(a: SolveArgs) -> Result<()> {
         keep_iterates: false,
     };
     opts.validate().map_err(option_error)?;
-    let backend = choose_backend(a.device, a.solver, &opts)?;
-    let report = backend.solve(&problem, a.solver, &opts, None)?;
+    let solver = a.solver.unwrap_or_else(|| {
+        let kind = default_solver(a.tol, a.device);
+        eprintln!("solver: {kind} (the default at tol {:e}; --solver to choose)", a.tol);
+        kind
+    });
+    let backend = choose_backend(a.device, solver, &opts)?;
+    let report = backend.solve(&problem, solver, &opts, None)?;
     let adapter = backend.adapter_name();
     let device = backend.name();
     println!("{}", summary_line(&report, device, a.tol));

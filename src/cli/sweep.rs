@@ -29,9 +29,10 @@ pub struct SweepArgs {
     tols: Vec<f64>,
     #[arg(long, default_value_t = 20_000)]
     max_iter: usize,
-    /// Tolerance of the performance profile (default: the middle of --tols).
-    #[arg(long)]
-    profile_tol: Option<f64>,
+    /// Tolerances of the performance profiles (default: the middle of --tols); the first is
+    /// written as profile.*, each as profile_<tol>.*.
+    #[arg(long, value_delimiter = ',')]
+    profile_tol: Vec<f64>,
     /// For a scene: the steps whose problems are swept.
     #[arg(long, value_delimiter = ',', default_values_t = [1usize])]
     scene_steps: Vec<usize>,
@@ -68,7 +69,7 @@ pub fn sweep_command(a: SweepArgs) -> Result<()> {
     }
     let mut tols = a.tols.clone();
     tols.sort_by(|x, y| y.total_cmp(x));
-    if let Some(p) = a.profile_tol {
+    for &p in &a.profile_tol {
         let tightest = *tols.last().expect("tols is not empty");
         if !(p.is_finite() && p > 0.0 && p >= tightest) {
             bail!("--profile-tol {p}: must be finite, > 0 and no finer than the finest of --tols ({tightest:e}), or every solver's profile would be empty");
@@ -116,7 +117,7 @@ pub fn sweep_command(a: SweepArgs) -> Result<()> {
     let tightest = *tols.last().unwrap();
     let runs = work_precision(&problems, &kinds, &backends, tightest, a.max_iter, &mut |line| eprintln!("{line}"))?;
     let names: Vec<String> = problems.iter().map(|(n, _)| n.clone()).collect();
-    write_sweep_outputs(&a.out, &names, &runs, &tols, a.profile_tol)?;
+    write_sweep_outputs(&a.out, &names, &runs, &tols, &a.profile_tol)?;
     eprintln!("outputs in {}", a.out.display());
     Ok(())
 }
@@ -127,7 +128,7 @@ fn write_sweep_outputs(
     problems: &[String],
     runs: &[Run],
     tols: &[f64],
-    profile_tol: Option<f64>,
+    profile_tols: &[f64],
 ) -> Result<()> {
     write_csv(&out.join("work_precision.csv"), runs.iter().flat_map(|r| tols.iter().map(|&t| r.at(t))))?;
     write_csv(
@@ -147,12 +148,25 @@ fn write_sweep_outputs(
     let table = markdown_table(runs, tols);
     std::fs::write(out.join("time_to_tol.md"), &table)?;
     println!("{table}");
-    let profile_tol = profile_tol.unwrap_or(tols[tols.len() / 2]);
-    let profile = profiles(runs, profile_tol);
-    write_csv(
-        &out.join("profile.csv"),
-        profile.iter().flat_map(|(label, pts)| pts.iter().map(move |(tau, rho)| (label.clone(), *tau, *rho))),
-    )?;
+    let profile_tols = if profile_tols.is_empty() { vec![tols[tols.len() / 2]] } else { profile_tols.to_vec() };
+    let profiles: Vec<(f64, Vec<Series>)> = profile_tols.iter().map(|&t| (t, profiles(runs, t))).collect();
+    // The first profile under its plain name, every one under its tolerance's.
+    let stems = |i: usize, tol: f64| {
+        let tagged = format!("profile_{tol:.0e}");
+        if i == 0 {
+            vec!["profile".to_string(), tagged]
+        } else {
+            vec![tagged]
+        }
+    };
+    for (i, (tol, profile)) in profiles.iter().enumerate() {
+        for stem in stems(i, *tol) {
+            write_csv(
+                &out.join(format!("{stem}.csv")),
+                profile.iter().flat_map(|(label, pts)| pts.iter().map(move |(tau, rho)| (label.clone(), *tau, *rho))),
+            )?;
+        }
+    }
     if !font_available() {
         eprintln!("warning: no font for chart text (install fonts-dejavu-core or set MOREAU_FONT): CSV only");
         return Ok(());
@@ -173,18 +187,21 @@ fn write_sweep_outputs(
             &Chart { title: &title, x_label: "seconds", y_label: "error", log_x: true, log_y: true, series: &series },
         )?;
     }
-    let title = format!("performance profile at tol {profile_tol:.0e} ({} problems)", problems.len());
-    write_chart(
-        &out.join("profile"),
-        &Chart {
-            title: &title,
-            x_label: "τ (time / best time)",
-            y_label: "fraction solved",
-            log_x: true,
-            log_y: false,
-            series: &profile,
-        },
-    )
+    for (i, (tol, profile)) in profiles.iter().enumerate() {
+        let title = format!("performance profile at tol {tol:.0e} ({} problems)", problems.len());
+        for stem in stems(i, *tol) {
+            let chart = Chart {
+                title: &title,
+                x_label: "τ (time / best time)",
+                y_label: "fraction solved",
+                log_x: true,
+                log_y: false,
+                series: profile,
+            };
+            write_chart(&out.join(stem), &chart)?;
+        }
+    }
+    Ok(())
 }
 
 #[derive(serde::Serialize)]
@@ -248,7 +265,7 @@ fn structural_sweep(
         );
     }
     let (runs, energy, rows) = (&study.runs, &study.energy, &study.latin_k);
-    write_sweep_outputs(&a.out, std::slice::from_ref(&scene.name), runs, tols, a.profile_tol)?;
+    write_sweep_outputs(&a.out, std::slice::from_ref(&scene.name), runs, tols, &a.profile_tol)?;
     write_csv(
         &a.out.join("energy_convergence.csv"),
         energy.iter().flat_map(|(label, r)| {

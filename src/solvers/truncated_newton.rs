@@ -21,6 +21,7 @@ use super::conjugate_gradient::ConjugateGradient;
 use super::monitor::Monitor;
 use super::nlgs::update_contact;
 use super::{SolveReport, SolverKind, SolverOptions};
+use crate::problem::residual::problem_error;
 use crate::problem::{dot, BlockSparse, ContactProblem, Mat2};
 
 /// Regularisation of the free block relative to its diagonal: redundant contacts make `W_II`
@@ -132,6 +133,13 @@ const MIN_FRICTIONAL_STEP: f64 = 0.5;
 /// Most sweeps between two tries after refused corrections (the interval doubles on each).
 const MAX_INTERVAL: usize = 256;
 
+/// With friction, a correction after which the next sweep leaves the error more than this many
+/// times what it was before the correction is undone (impulses restored, next try postponed).
+/// A correction may raise the error for a while and still pay (the 7,002-contact Siconos file
+/// reaches 1e-8 through such ones; undoing any growth over 5× loses that), but one that multiplies
+/// it by 15 sent a rotating-drum step from 1e-4 to 1e-3 for good (BENCHMARKS.md).
+const ROLLBACK_GROWTH: f64 = 10.0;
+
 /// How the correction's linear system is solved.
 enum Correction {
     /// Sparse Cholesky on `W`'s pattern, refreshed when the free set changes.
@@ -166,11 +174,15 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, direct:
     let mut thresholds = vec![0.0; nc];
     let (mut interval, mut next_try) = (1, 1);
     let frictionless = p.is_frictionless();
+    // With friction, a taken correction is on probation for one sweep: (iteration it is judged
+    // at, the error before it, the impulses before it).
+    let mut probation: Option<(usize, f64, Vec<f64>)> = None;
     loop {
         sweep(p, &diag, opts.omega, &mut r);
         monitor.w_products += 1;
         // Sweeps without a correction are watched as NLGS's are (light rule, check cadence).
-        if monitor.iteration() + 1 < next_try {
+        let due = probation.as_ref().map_or(next_try, |(at, _, _)| *at);
+        if monitor.iteration() + 1 < due {
             if monitor.observe(&r, None) {
                 break;
             }
@@ -180,6 +192,17 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, direct:
         monitor.w_products += 1;
         if monitor.observe(&r, Some(&u)) {
             break;
+        }
+        let error = if frictionless { 0.0 } else { problem_error(p, &r, &u) };
+        if let Some((_, before, saved)) = probation.take() {
+            if error > ROLLBACK_GROWTH * before {
+                // The sweeps after the correction did not recover it: back to before it.
+                r.copy_from_slice(&saved);
+                interval = (2 * interval).min(MAX_INTERVAL);
+                next_try = monitor.iteration() + interval;
+                continue;
+            }
+            interval = 1;
         }
         // The Tresca problem of thresholds s = μ r_n: normals of closed contacts and tangents
         // strictly inside their threshold are free; the rest stay where the sweep put them.
@@ -228,12 +251,17 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, direct:
             }
         }
         let taken = step > 0.0 && (frictionless || step >= MIN_FRICTIONAL_STEP);
+        if taken && !frictionless {
+            probation = Some((monitor.iteration() + 1, error, r.clone()));
+        }
         if taken {
             for i in 0..n {
                 r[i] += step * correction[i];
             }
         }
-        interval = if taken { 1 } else { (2 * interval).min(MAX_INTERVAL) };
+        if probation.is_none() {
+            interval = if taken { 1 } else { (2 * interval).min(MAX_INTERVAL) };
+        }
         next_try = monitor.iteration() + interval;
     }
     monitor.finish(r)
