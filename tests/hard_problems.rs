@@ -154,3 +154,26 @@ fn nlgs_newton_undoes_a_correction_that_ruins_the_iterate() {
     );
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// A 1:1,000 mass-ratio column (20 light disks under a heavy one, μ 0.5), where NLGS stalls:
+/// NLGS–Newton solves it in a few corrections, and the Alart–Curnier Newton reaches 1e-8 with
+/// its line search refusing some directions, which NLGS sweeps replace — and the report counts
+/// them.
+#[test]
+fn newton_methods_solve_the_heavy_column_and_newton_reports_its_fallbacks() {
+    let p = heavy_column(20, 1000.0, 0.5);
+    let opts = SolverOptions { tol: 1e-8, max_iter: 5_000, ..Default::default() };
+    let nlgs = solve(&p, SolverKind::Nlgs, &opts, None);
+    assert!(!nlgs.converged, "NLGS was expected to stall here (error {:e})", nlgs.error);
+    // Measured: 3 iterations to 7.9e-12.
+    let hybrid = solve(&p, SolverKind::NlgsNewton, &SolverOptions { tol: 1e-10, ..opts.clone() }, None);
+    assert!(hybrid.converged && hybrid.iterations <= 20, "nlgs-newton: {} its, {:e}", hybrid.iterations, hybrid.error);
+    common::check_solution(&p, &hybrid.r, 1e-5).unwrap();
+    // Measured: 1,870 Newton directions, 4 refused by the line search.
+    let newton = solve(&p, SolverKind::Newton, &opts, None);
+    assert!(newton.converged, "newton: {} ({:e})", newton.stop_reason, newton.error);
+    // The note reads "N Newton directions, M refused by the line search (…)".
+    let note = newton.notes.iter().find(|n| n.contains("refused by the line search")).expect("a note on refusals");
+    let refused: usize = note.split(", ").nth(1).and_then(|s| s.split(' ').next()?.parse().ok()).unwrap();
+    assert!(refused > 0, "the line search was expected to refuse some directions: {:?}", newton.notes);
+}

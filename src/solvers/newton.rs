@@ -199,6 +199,7 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveRepo
     let mut landed = vec![0.0; n];
     evaluate(p, &rho, &r, &u, &mut phi, &mut jac);
     let scale = norm(&p.q).max(norm(&r)).max(f64::EPSILON);
+    let (mut newton_steps, mut fallbacks) = (0usize, 0usize);
     loop {
         let phi_norm = norm(&phi);
         // Levenberg–Marquardt shift for singular J (redundant contacts), vanishing at the solution.
@@ -241,6 +242,7 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveRepo
                 break false;
             }
         };
+        newton_steps += 1;
         if accepted {
             std::mem::swap(&mut r, &mut r_try);
             std::mem::swap(&mut u, &mut u_try);
@@ -248,6 +250,7 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveRepo
             std::mem::swap(&mut jac, &mut jac_try);
         } else {
             // No decrease along the Newton direction: Gauss–Seidel sweeps, then Newton again.
+            fallbacks += 1;
             let (r2, u2, _, k) = sweeps(r, &mut monitor);
             (r, u) = (r2, u2);
             monitor.add_iterations(k.saturating_sub(1));
@@ -262,6 +265,9 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveRepo
             break;
         }
     }
+    monitor.note(format!(
+        "{newton_steps} Newton directions, {fallbacks} refused by the line search (NLGS sweeps instead)"
+    ));
     monitor.finish(landed)
 }
 
