@@ -10,7 +10,7 @@ use moreau::backend::{gpu_refusal, Backend, DeviceChoice, F32_FLOOR};
 use moreau::gpu::GpuContext;
 use moreau::problem::generate::lattice_packing;
 use moreau::solvers::stopping::CHECK_WORK;
-use moreau::solvers::{solve, SolverKind, SolverOptions, StopCriterion, StopReason};
+use moreau::solvers::{solve, NewtonLinear, SolverKind, SolverOptions, StopCriterion, StopReason};
 use moreau::stepping::Simulation;
 use moreau::ContactProblem;
 
@@ -277,8 +277,13 @@ fn a_step_repairs_the_last_colouring_rather_than_rebuilding_it() {
 fn newton_and_nlgs_newton_reach_tight_tolerances_on_small_problems() {
     for (nx, ny, mu) in [(12, 6, 0.0), (12, 6, 0.3), (20, 8, 0.5)] {
         let p = lattice_packing(nx, ny, mu, 7);
-        for kind in [SolverKind::Newton, SolverKind::NlgsNewton] {
-            let opts = SolverOptions { tol: 1e-10, max_iter: 2_000, ..Default::default() };
+        let lu = SolverOptions { newton_linear: NewtonLinear::Direct, ..Default::default() };
+        for (kind, base) in [
+            (SolverKind::Newton, SolverOptions::default()),
+            (SolverKind::Newton, lu),
+            (SolverKind::NlgsNewton, SolverOptions::default()),
+        ] {
+            let opts = SolverOptions { tol: 1e-10, max_iter: 2_000, ..base };
             let r = solve(&p, kind, &opts, None);
             assert!(r.converged && r.error <= 1e-10, "{kind} on {nx}x{ny} mu {mu}: {:.2e} {}", r.error, r.stop_reason);
             // Newton steps, not NLGS fallbacks (10 counted iterations each), do the work:

@@ -9,7 +9,7 @@ use crate::backend::Backend;
 use crate::io::report::{summary_line, SolveOutput};
 use crate::io::siconos::{read_fc2d, write_fc2d, Storage};
 use crate::problem::generate;
-use crate::solvers::{self, LatinK, Ordering, SolverKind, SolverOptions, StopCriterion};
+use crate::solvers::{self, LatinK, NewtonLinear, Ordering, SolverKind, SolverOptions, StopCriterion};
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 use std::path::PathBuf;
@@ -73,6 +73,9 @@ struct SolveArgs {
     /// products), with friction 1.
     #[arg(long, default_value = "auto")]
     latin_k: LatinK,
+    /// Newton: its linear systems by GMRES on W products, or by a sparse LU of J (direct).
+    #[arg(long, value_enum, default_value_t = NewtonLinear::Gmres)]
+    newton_linear: NewtonLinear,
     /// LATIN: one k for all, `--latin-k` times the mean of diag(W).
     #[arg(long)]
     latin_k_mean: bool,
@@ -409,6 +412,7 @@ fn solve_command(a: SolveArgs) -> Result<()> {
         jacobi_omega: a.jacobi_omega,
         latin_k: a.latin_k,
         latin_k_mean: a.latin_k_mean,
+        newton_linear: a.newton_linear,
         apgd_threshold_every: a.apgd_threshold_every,
         history_every: a.history_every,
         keep_iterates: false,

@@ -26,6 +26,7 @@ pub mod stopping;
 pub mod truncated_newton;
 
 pub use latin::LatinK;
+pub use newton::NewtonLinear;
 pub use stopping::StopReason;
 
 use crate::problem::ContactProblem;
@@ -211,6 +212,8 @@ pub struct SolverOptions {
     pub latin_k: LatinK,
     /// LATIN: one `k = factor · mean(diag W)` for every component instead of the diagonal.
     pub latin_k_mean: bool,
+    /// Newton: how its linear systems are solved (GMRES on `W` products, or sparse LU).
+    pub newton_linear: NewtonLinear,
     /// APGD: iterations between two updates of the Tresca thresholds `s = μ r_n`.
     pub apgd_threshold_every: usize,
     /// Record the error every this many iterations for work-precision curves (0: only when checked);
@@ -233,6 +236,7 @@ impl Default for SolverOptions {
             jacobi_omega: 0.5,
             latin_k: LatinK::Auto,
             latin_k_mean: false,
+            newton_linear: NewtonLinear::Gmres,
             apgd_threshold_every: 10,
             history_every: 0,
             keep_iterates: false,

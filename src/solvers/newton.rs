@@ -5,17 +5,36 @@
 //! `τ = r − ρ u`, `Φ_n = r_n − max(0, τ_n)`, `Φ_t = r_t − clamp(τ_t, ±μ max(0, τ_n))`;
 //! `Φ(r) = 0` exactly when `r` solves the problem. A generalised Jacobian is `J = D_r + D_u W`
 //! with 2×2 blocks per contact (open, stick, slide ±: [`ac_function`]). Each Newton step solves
-//! `(J + εI) Δ = −Φ` by restarted GMRES on `W` products (right block-Jacobi preconditioner, inexact:
-//! relative residual ≤ min(0.5, ‖Φ‖^½)), then backtracks (Armijo) on the natural-map error that
+//! `(J + εI) Δ = −Φ` by restarted GMRES on `W` products (right block-Jacobi preconditioner,
+//! inexact: relative residual ≤ min(0.5, ‖Φ‖^½)), or with [`NewtonLinear::Direct`] by a sparse
+//! LU factorisation of `J` (faer; `W` assembled once, the symbolic factorisation reused; faster
+//! on some problems, worse on others: BENCHMARKS.md) — then backtracks (Armijo) on the natural-map error that
 //! judges every solve. Newton's iterates may leave the cone; each is judged, and the answer
 //! returned, landed on it (one product more a step). When no step decreases it, a batch of NLGS sweeps takes over and Newton
 //! tries again from there. (`nlgs-newton` is another method: [`super::truncated_newton`].)
+
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::MatMut;
+use serde::Serialize;
 
 use super::monitor::Monitor;
 use super::{nlgs, SolveReport, SolverKind, SolverOptions};
 use crate::problem::cone::project_cone;
 use crate::problem::residual::natural_map_error;
-use crate::problem::{dot, norm, ContactProblem, Mat2};
+use crate::problem::{dot, norm, BlockSparse, ContactProblem, Mat2};
+
+/// How Newton solves its linear systems.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+pub enum NewtonLinear {
+    /// Restarted GMRES on `W` products (matrix-free), inexact.
+    Gmres,
+    /// Sparse LU of `J` on the assembled `W` (faer), exact.
+    Direct,
+}
 
 /// Krylov vectors kept before GMRES restarts.
 const RESTART: usize = 30;
@@ -91,6 +110,78 @@ fn block_preconditioner(jac: &[AcBlocks], diag: &[Mat2], eps: f64) -> Vec<Mat2> 
             }
         })
         .collect()
+}
+
+/// `J + εI` on `W`'s block pattern in compressed columns, its symbolic LU kept between steps.
+struct DirectJacobian {
+    w: BlockSparse,
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    /// Per stored entry: (block of `w`, its block row `a`, `i`, `j`, whether the block is diagonal);
+    /// the entry is `(D_u,a W_ac)[i][j]` (+ `D_r,a[i][j] + ε δ_ij` on the diagonal block).
+    source: Vec<(usize, usize, usize, usize, bool)>,
+    values: Vec<f64>,
+    symbolic: SymbolicLu<usize>,
+}
+
+impl DirectJacobian {
+    fn new(w: BlockSparse) -> Result<Self, String> {
+        let nc = w.n_contacts();
+        let mut entries = Vec::with_capacity(4 * w.blocks.len());
+        let mut has_diagonal = vec![false; nc];
+        for a in 0..nc {
+            for k in w.row_ptr[a]..w.row_ptr[a + 1] {
+                let c = w.cols[k];
+                has_diagonal[a] |= c == a;
+                for i in 0..2 {
+                    for j in 0..2 {
+                        entries.push((2 * c + j, 2 * a + i, (k, a, i, j, c == a)));
+                    }
+                }
+            }
+        }
+        if let Some(a) = has_diagonal.iter().position(|d| !d) {
+            return Err(format!("W has no diagonal block for contact {a}"));
+        }
+        entries.sort_unstable_by_key(|&(col, row, _)| (col, row));
+        let n = 2 * nc;
+        let mut col_ptr = vec![0usize; n + 1];
+        entries.iter().for_each(|&(col, _, _)| col_ptr[col + 1] += 1);
+        (0..n).for_each(|c| col_ptr[c + 1] += col_ptr[c]);
+        let row_idx: Vec<usize> = entries.iter().map(|e| e.1).collect();
+        let source = entries.iter().map(|e| e.2).collect();
+        let pattern = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
+        let symbolic = SymbolicLu::try_new(pattern).map_err(|e| format!("{e:?}"))?;
+        let values = vec![0.0; row_idx.len()];
+        Ok(Self { w, col_ptr, row_idx, source, values, symbolic })
+    }
+
+    /// Factorises `J + εI` at the current blocks and solves `x = (J + εI)⁻¹ b` in place;
+    /// false when the factorisation fails (`x` then untouched).
+    fn solve(&mut self, jac: &[AcBlocks], eps: f64, x: &mut [f64]) -> bool {
+        for (v, &(k, a, i, j, diagonal)) in self.values.iter_mut().zip(&self.source) {
+            let (dr, du) = &jac[a];
+            let b = &self.w.blocks[k];
+            *v = du[2 * i] * b[j] + du[2 * i + 1] * b[2 + j];
+            if diagonal {
+                *v += dr[2 * i + j] + if i == j { eps } else { 0.0 };
+            }
+        }
+        let n = x.len();
+        let pattern = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
+        match Lu::try_new_with_symbolic(self.symbolic.clone(), SparseColMatRef::new(pattern, &self.values)) {
+            Ok(lu) => {
+                let mut y = x.to_vec();
+                lu.solve_in_place(MatMut::from_column_major_slice_mut(&mut y, n, 1));
+                if y.iter().all(|v| v.is_finite()) {
+                    x.copy_from_slice(&y);
+                    return true;
+                }
+                false
+            }
+            Err(_) => false,
+        }
+    }
 }
 
 /// Restarted GMRES with right preconditioning for `A x = b` from `x = 0`, to relative residual
@@ -199,7 +290,16 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveRepo
     let mut landed = vec![0.0; n];
     evaluate(p, &rho, &r, &u, &mut phi, &mut jac);
     let scale = norm(&p.q).max(norm(&r)).max(f64::EPSILON);
-    let (mut newton_steps, mut fallbacks) = (0usize, 0usize);
+    let (mut newton_steps, mut fallbacks, mut factorised) = (0usize, 0usize, 0usize);
+    let wants_direct = opts.newton_linear == NewtonLinear::Direct;
+    let mut direct = match wants_direct.then(|| DirectJacobian::new(p.w.to_block_sparse())) {
+        Some(Ok(d)) => Some(d),
+        Some(Err(e)) => {
+            monitor.note(format!("no sparse LU ({e}): GMRES"));
+            None
+        }
+        None => None,
+    };
     loop {
         let phi_norm = norm(&phi);
         // Levenberg–Marquardt shift for singular J (redundant contacts), vanishing at the solution.
@@ -207,19 +307,28 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveRepo
         let inverse = block_preconditioner(&jac, &diag, eps);
         let minus_phi: Vec<f64> = phi.iter().map(|f| -f).collect();
         let forcing = (phi_norm / scale).sqrt().min(0.5);
-        let products = gmres(
-            |v, out| apply_jacobian(p, &jac, eps, v, &mut wv, out),
-            |v, out| {
-                for (a, m) in inverse.iter().enumerate() {
-                    let y = mat_vec(m, [v[2 * a], v[2 * a + 1]]);
-                    out[2 * a..2 * a + 2].copy_from_slice(&y);
-                }
-            },
-            &minus_phi,
-            &mut step,
-            forcing,
-            MAX_KRYLOV,
-        );
+        let by_lu = direct.as_mut().is_some_and(|d| {
+            step.copy_from_slice(&minus_phi);
+            d.solve(&jac, eps, &mut step)
+        });
+        factorised += usize::from(by_lu);
+        let products = if by_lu {
+            0
+        } else {
+            gmres(
+                |v, out| apply_jacobian(p, &jac, eps, v, &mut wv, out),
+                |v, out| {
+                    for (a, m) in inverse.iter().enumerate() {
+                        let y = mat_vec(m, [v[2 * a], v[2 * a + 1]]);
+                        out[2 * a..2 * a + 2].copy_from_slice(&y);
+                    }
+                },
+                &minus_phi,
+                &mut step,
+                forcing,
+                MAX_KRYLOV,
+            )
+        };
         monitor.w_products += products;
         // Armijo backtracking on the judged error itself: ½‖Φ‖² weighs a contact's velocity
         // residual by ρ = 1/W_αα, so it can fall while the error rises (measured: a 7,002-contact
@@ -266,7 +375,7 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveRepo
         }
     }
     monitor.note(format!(
-        "{newton_steps} Newton directions, {fallbacks} refused by the line search (NLGS sweeps instead)"
+        "{newton_steps} Newton directions ({factorised} by sparse LU), {fallbacks} refused by the line search (NLGS sweeps instead)"
     ));
     monitor.finish(landed)
 }
@@ -316,6 +425,29 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The sparse LU of `J + εI` built on `W`'s block pattern solves the system the matrix-free
+    /// product applies, with open, stick and slide contacts mixed (a random small problem).
+    #[test]
+    fn sparse_lu_inverts_the_matrix_free_jacobian() {
+        let p = crate::problem::generate::random_small(12, 0.5, 4);
+        let n = 2 * p.n_contacts();
+        let r: Vec<f64> =
+            (0..n).map(|i| if i % 2 == 0 { 0.5 + 0.1 * (i % 5) as f64 } else { 0.3 - 0.1 * (i % 7) as f64 }).collect();
+        let u = p.velocity(&r);
+        let diag = p.w.diag_blocks();
+        let rho: Vec<[f64; 2]> = diag.iter().map(|d| [1.0 / d[0], 1.0 / d[3]]).collect();
+        let (mut phi, mut jac) = (vec![0.0; n], vec![([0.0; 4], [0.0; 4]); p.n_contacts()]);
+        evaluate(&p, &rho, &r, &u, &mut phi, &mut jac);
+        let (eps, b): (f64, Vec<f64>) = (1e-3, (0..n).map(|i| (i as f64 * 0.37).sin()).collect());
+        let mut x = b.clone();
+        let mut direct = DirectJacobian::new(p.w.to_block_sparse()).unwrap();
+        assert!(direct.solve(&jac, eps, &mut x));
+        let (mut wv, mut jx) = (vec![0.0; n], vec![0.0; n]);
+        apply_jacobian(&p, &jac, eps, &x, &mut wv, &mut jx);
+        let err = jx.iter().zip(&b).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(err < 1e-9, "‖J x − b‖∞ = {err:e}");
     }
 
     #[test]
