@@ -129,10 +129,10 @@ impl DirectJacobian {
         let nc = w.n_contacts();
         let mut entries = Vec::with_capacity(4 * w.blocks.len());
         let mut has_diagonal = vec![false; nc];
-        for a in 0..nc {
+        for (a, diagonal) in has_diagonal.iter_mut().enumerate() {
             for k in w.row_ptr[a]..w.row_ptr[a + 1] {
                 let c = w.cols[k];
-                has_diagonal[a] |= c == a;
+                *diagonal |= c == a;
                 for i in 0..2 {
                     for j in 0..2 {
                         entries.push((2 * c + j, 2 * a + i, (k, a, i, j, c == a)));
