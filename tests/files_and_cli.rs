@@ -109,6 +109,17 @@ fn solve_command_writes_the_report_and_fails_cleanly_on_bad_input() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success() && err.contains("--latin-k") && err.contains("auto"), "{k}: {err}");
     }
+    // LATIN's automatic choice is reported in the JSON result (and under the summary line).
+    let out = moreau()
+        .arg("solve")
+        .arg(&file)
+        .args(["--solver", "latin", "--device", "cpu", "--out"])
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(out.status.success() && String::from_utf8_lossy(&out.stdout).contains("LATIN search direction"));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert!(v["notes"][0].as_str().is_some_and(|n| n.starts_with("LATIN search direction")), "{}", v["notes"]);
 }
 
 /// Inputs that used to panic or abort now fail with a message naming the problem and exit 2.

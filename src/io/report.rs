@@ -32,6 +32,8 @@ pub struct SolveOutput<'a> {
     pub w_products: usize,
     /// Why the solve stopped.
     pub stop_reason: &'a str,
+    /// What the solver chose on its own (LATIN's search direction, Newton's refused directions).
+    pub notes: &'a [String],
     /// The error at the checks.
     pub history: &'a [HistoryPoint],
     /// The impulses.
@@ -57,6 +59,7 @@ impl<'a> SolveOutput<'a> {
             seconds: rep.seconds,
             w_products: rep.w_products,
             stop_reason: &rep.stop_reason,
+            notes: &rep.notes,
             history: &rep.history,
             r: &rep.r,
             u: &rep.u,
