@@ -103,6 +103,9 @@ fn solve_command_writes_the_report_and_fails_cleanly_on_bad_input() {
         assert!(out.status.success() && stdout.starts_with(&format!("{solver} on cpu")), "{tol}: {stdout}");
         assert!(stderr.contains(&format!("solver: {solver} (the default")), "{tol}: {stderr}");
     }
+    let out = moreau().arg("solve").arg(&file).args(["--device", "cpu", "--anderson", "51"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("anderson 51") && err.contains("at most 50"), "{err}");
     for k in ["0", "fast", "-1"] {
         let out =
             moreau().arg("solve").arg(&file).args(["--solver", "latin", &format!("--latin-k={k}")]).output().unwrap();

@@ -104,6 +104,9 @@ pub fn gpu_refusal(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
     if opts.keep_iterates {
         return Some("the GPU path keeps no iterates".into());
     }
+    if opts.anderson > 0 {
+        return Some(format!("the GPU's NLGS has no Anderson acceleration (anderson = {})", opts.anderson));
+    }
     None
 }
 

@@ -65,6 +65,9 @@ struct SolveArgs {
     ordering: Ordering,
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// NLGS: Anderson acceleration over this many past sweeps (0: off; 5 is a good start).
+    #[arg(long, default_value_t = 0)]
+    anderson: usize,
     /// Projected Jacobi relaxation.
     #[arg(long, default_value_t = SolverOptions::default().jacobi_omega)]
     jacobi_omega: f64,
@@ -409,6 +412,7 @@ fn solve_command(a: SolveArgs) -> Result<()> {
         omega: a.omega,
         ordering: a.ordering,
         seed: a.seed,
+        anderson: a.anderson,
         jacobi_omega: a.jacobi_omega,
         latin_k: a.latin_k,
         latin_k_mean: a.latin_k_mean,

@@ -98,6 +98,8 @@ struct SolverSpec {
     max_iter: Option<usize>,
     ordering: Option<String>,
     omega: Option<f64>,
+    /// NLGS: Anderson acceleration over this many past sweeps (0: off).
+    anderson: Option<usize>,
     /// natural (default), velocity, quad, maxm, qm16 (LMGC90's tests).
     criterion: Option<String>,
 }
@@ -804,6 +806,7 @@ impl Builder<'_> {
             options.tol = s.tol.unwrap_or(options.tol);
             options.max_iter = s.max_iter.unwrap_or(options.max_iter);
             options.omega = s.omega.unwrap_or(1.0);
+            options.anderson = s.anderson.unwrap_or(0);
             if let Some(c) = &s.criterion {
                 options.criterion = StopCriterion::from_name(c).or_else(|_| {
                     self.cx.err(

@@ -13,6 +13,7 @@
 //! Every solver is judged by the same f64 error ([`crate::problem::residual`]) through a
 //! [`monitor::Monitor`], and returns a [`SolveReport`].
 
+pub mod anderson;
 pub mod apgd;
 mod conjugate_gradient;
 pub mod cpg;
@@ -205,6 +206,8 @@ pub struct SolverOptions {
     pub ordering: Ordering,
     /// NLGS: the seed of the shuffled ordering.
     pub seed: u64,
+    /// NLGS: Anderson acceleration over this many past sweeps (0: plain sweeps).
+    pub anderson: usize,
     /// Projected Jacobi relaxation (step = ω / mean diagonal of the contact block).
     pub jacobi_omega: f64,
     /// LATIN search direction: `k = factor · diag(W_αα)` per component (compliance units), the
@@ -233,6 +236,7 @@ impl Default for SolverOptions {
             omega: 1.0,
             ordering: Ordering::Forward,
             seed: 0,
+            anderson: 0,
             jacobi_omega: 0.5,
             latin_k: LatinK::Auto,
             latin_k_mean: false,
@@ -276,9 +280,16 @@ impl SolverOptions {
         if self.max_iter == 0 {
             return Err(OptionError { name: "max_iter", value: "0".into(), rule: "must be at least 1" });
         }
+        if self.anderson > MAX_ANDERSON {
+            let rule = "Anderson acceleration keeps at most 50 past sweeps";
+            return Err(OptionError { name: "anderson", value: self.anderson.to_string(), rule });
+        }
         Ok(())
     }
 }
+
+/// Most past sweeps Anderson acceleration may mix.
+pub const MAX_ANDERSON: usize = 50;
 
 /// One point of the error history.
 #[derive(Clone, Copy, Debug, Serialize)]

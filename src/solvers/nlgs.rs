@@ -32,6 +32,9 @@ const MIN_TASK: usize = 256;
 
 /// Solves from `r` by NLGS (colour by colour on threads for a large matrix-free problem).
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveReport {
+    if opts.anderson > 0 {
+        return super::anderson::solve(p, opts, r);
+    }
     match &p.w {
         Delassus::MatrixFree(op) if opts.ordering == Ordering::Forward && parallel(p.n_contacts()) => {
             solve_coloured(p, op, opts, &r)
@@ -137,6 +140,14 @@ fn solve_on(
         }
     }
     monitor.finish(r)
+}
+
+/// One sequential forward sweep in place (the smoother of NLGS–Newton, the map Anderson mixes).
+pub(super) fn forward_sweep(p: &ContactProblem, diag: &[Mat2], omega: f64, r: &mut [f64]) {
+    let mut state = p.w.sweep_state(r);
+    for a in 0..p.n_contacts() {
+        update_contact(p, diag, omega, a, r, &mut state);
+    }
 }
 
 /// Contact `a`'s Gauss–Seidel update of `r` and of the sweep state.

@@ -19,10 +19,10 @@ use faer::{MatMut, Side};
 
 use super::conjugate_gradient::ConjugateGradient;
 use super::monitor::Monitor;
-use super::nlgs::update_contact;
+use super::nlgs::forward_sweep;
 use super::{SolveReport, SolverKind, SolverOptions};
 use crate::problem::residual::problem_error;
-use crate::problem::{dot, BlockSparse, ContactProblem, Mat2};
+use crate::problem::{dot, BlockSparse, ContactProblem};
 
 /// Regularisation of the free block relative to its diagonal: redundant contacts make `W_II`
 /// singular. Raised ×100 while the factorisation fails.
@@ -111,14 +111,6 @@ impl TrescaSystem {
     }
 }
 
-/// One forward Gauss–Seidel sweep in place.
-fn sweep(p: &ContactProblem, diag: &[Mat2], omega: f64, r: &mut [f64]) {
-    let mut state = p.w.sweep_state(r);
-    for a in 0..p.n_contacts() {
-        update_contact(p, diag, omega, a, r, &mut state);
-    }
-}
-
 /// Contacts above which the correction is solved by masked CG on `W` products instead of a
 /// factorisation (memory and fill grow faster than the problem).
 const DIRECT_LIMIT: usize = 30_000;
@@ -178,7 +170,7 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, direct:
     // at, the error before it, the impulses before it).
     let mut probation: Option<(usize, f64, Vec<f64>)> = None;
     loop {
-        sweep(p, &diag, opts.omega, &mut r);
+        forward_sweep(p, &diag, opts.omega, &mut r);
         monitor.w_products += 1;
         // Sweeps without a correction are watched as NLGS's are (light rule, check cadence).
         let due = probation.as_ref().map_or(next_try, |(at, _, _)| *at);
