@@ -2,6 +2,8 @@
 //! reorthogonalisation, then the Ritz values of its tridiagonal matrix by Sturm bisection.
 //! LATIN's automatic search direction reads `√(λ_min λ_max)` of the scaled `W` from here.
 
+use super::dot;
+
 /// The smallest and largest Ritz values of `apply` (symmetric, `n` unknowns) after at most
 /// `steps` Lanczos steps from `start`, and the products used. The largest converges fast; the
 /// smallest is an upper bound of `λ_min` that tightens with the steps. `None` when `start` is
@@ -84,10 +86,6 @@ pub fn tridiagonal_eigenvalue(alpha: &[f64], beta: &[f64], k: usize) -> f64 {
         }
     }
     0.5 * (lo + hi)
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 #[cfg(test)]
