@@ -3,8 +3,9 @@
 //! outputs whose residuals `G(r) − r` combine to the smallest norm, landed on the cones. Once
 //! the contact statuses settle the map is affine and the mixing acts as GMRES on it.
 //!
-//! Safeguard: a mixed iterate whose sweep residual exceeds the previous one is dropped — back to
-//! the plain sweep's output, history forgotten (without it the mixing kept a rotating-drum step
+//! Safeguard: a mixed iterate whose sweep residual exceeds the reference (the last mixed
+//! iterate's residual, or the smallest since then) is dropped — back to the plain sweep's
+//! output, history forgotten (without it the mixing kept a rotating-drum step
 //! at 4e-4 that plain NLGS solves). Sequential sweeps only; with rolling resistance the plain
 //! NLGS runs instead, and the report's notes say so.
 
