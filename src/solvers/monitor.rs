@@ -112,6 +112,11 @@ impl<'a> Monitor<'a> {
         }
     }
 
+    /// The f64 error of the iterate last observed, when that observation checked it.
+    pub fn checked_error(&self) -> Option<f64> {
+        self.history.last().filter(|h| h.iteration == self.iteration).map(|h| h.error)
+    }
+
     /// Stops the solve early for a reason the solver knows (breakdown, stagnation).
     pub fn stop_with(&mut self, reason: StopReason, detail: impl Into<String>) {
         self.stop_reason.get_or_insert_with(|| (reason, detail.into()));

@@ -185,7 +185,9 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, direct:
         if monitor.observe(&r, Some(&u)) {
             break;
         }
-        let error = if frictionless { 0.0 } else { problem_error(p, &r, &u) };
+        // The monitor has just checked this iterate (it was handed `u`): its error, not a second pass.
+        let error =
+            if frictionless { 0.0 } else { monitor.checked_error().unwrap_or_else(|| problem_error(p, &r, &u)) };
         if let Some((_, before, saved)) = probation.take() {
             if error > ROLLBACK_GROWTH * before {
                 // The sweeps after the correction did not recover it: back to before it.
