@@ -38,7 +38,7 @@ typedef struct MoreauSolution MoreauSolution;
 
 // How to solve; fill with `moreau_solve_options_default` and change what you need.
 typedef struct MoreauSolveOptions {
-  // `nlgs`, `cpg`, `pcpg`, `latin`, `jacobi`, `apgd`, `newton`, `nlgs-newton`.
+  // `nlgs`, `cpg`, `pcpg`, `latin`, `jacobi`, `apgd`, `newton`, `nlgs-newton`, `interior-point`.
   const char *solver;
   // `auto`, `cpu` or `gpu`.
   const char *device;

@@ -53,7 +53,7 @@ pub struct MoreauSimulation(Simulation);
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
 pub struct MoreauSolveOptions {
-    /// `nlgs`, `cpg`, `pcpg`, `latin`, `jacobi`, `apgd`, `newton`, `nlgs-newton`.
+    /// `nlgs`, `cpg`, `pcpg`, `latin`, `jacobi`, `apgd`, `newton`, `nlgs-newton`, `interior-point`.
     pub solver: *const c_char,
     /// `auto`, `cpu` or `gpu`.
     pub device: *const c_char,

@@ -41,7 +41,7 @@ __all__ = [
     "__version__",
 ]
 
-SOLVERS = ("nlgs", "cpg", "pcpg", "latin", "jacobi", "apgd", "newton", "nlgs-newton")
+SOLVERS = ("nlgs", "cpg", "pcpg", "latin", "jacobi", "apgd", "newton", "nlgs-newton", "interior-point")
 
 Path = Union[str, "PathLike[str]"]
 

@@ -55,5 +55,5 @@ pub fn specialisation(p: &ContactProblem) -> (bool, bool) {
 
 /// Whether the GPU path has this solver.
 pub fn supports(kind: SolverKind) -> bool {
-    !matches!(kind, SolverKind::Latin | SolverKind::Newton | SolverKind::NlgsNewton)
+    !matches!(kind, SolverKind::Latin | SolverKind::Newton | SolverKind::NlgsNewton | SolverKind::InteriorPoint)
 }

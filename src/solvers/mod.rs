@@ -9,6 +9,7 @@
 //! | APGD | [`apgd`] | Nesterov projected gradient with restart, Tresca box with threshold updates |
 //! | Newton | [`newton`] | semismooth Newton on the Alart–Curnier function, GMRES on `W` products (prototype) |
 //! | NLGS–Newton | [`truncated_newton`] | NLGS sweeps, each followed by a truncated Newton correction of the Tresca problem (sparse Cholesky) |
+//! | interior point | [`interior_point`] | primal–dual interior point on De Saxcé's form of the wedge cones (sparse LU / Cholesky), NLGS sweeps from its iterate when it stops short |
 //!
 //! Every solver is judged by the same f64 error ([`crate::problem::residual`]) through a
 //! [`monitor::Monitor`], and returns a [`SolveReport`].
@@ -17,12 +18,14 @@ pub mod anderson;
 pub mod apgd;
 mod conjugate_gradient;
 pub mod cpg;
+pub mod interior_point;
 pub mod jacobi;
 pub mod latin;
 pub mod lmgc_criteria;
 pub mod monitor;
 pub mod newton;
 pub mod nlgs;
+mod sparse_cholesky;
 pub mod stopping;
 pub mod truncated_newton;
 
@@ -55,11 +58,13 @@ pub enum SolverKind {
     Newton,
     /// NLGS sweeps, each followed by a truncated Newton correction of the Tresca problem they define.
     NlgsNewton,
+    /// Primal–dual interior point on the De Saxcé fixed point (a convex QP per shift).
+    InteriorPoint,
 }
 
 impl SolverKind {
     /// Every solver, in the order reports list them.
-    pub const ALL: [SolverKind; 8] = [
+    pub const ALL: [SolverKind; 9] = [
         SolverKind::Nlgs,
         SolverKind::Cpg,
         SolverKind::Pcpg,
@@ -68,6 +73,7 @@ impl SolverKind {
         SolverKind::Apgd,
         SolverKind::Newton,
         SolverKind::NlgsNewton,
+        SolverKind::InteriorPoint,
     ];
 
     /// The name the command line and scene files use.
@@ -81,6 +87,7 @@ impl SolverKind {
             SolverKind::Apgd => "apgd",
             SolverKind::Newton => "newton",
             SolverKind::NlgsNewton => "nlgs-newton",
+            SolverKind::InteriorPoint => "interior-point",
         }
     }
 }
@@ -393,5 +400,6 @@ pub fn solve(problem: &ContactProblem, kind: SolverKind, opts: &SolverOptions, r
         SolverKind::Apgd => apgd::solve(problem, opts, r0),
         SolverKind::Newton => newton::solve(problem, opts, r0),
         SolverKind::NlgsNewton => truncated_newton::solve(problem, opts, r0),
+        SolverKind::InteriorPoint => interior_point::solve(problem, opts, r0),
     }
 }

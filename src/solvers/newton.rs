@@ -113,7 +113,7 @@ fn block_preconditioner(jac: &[AcBlocks], diag: &[Mat2], eps: f64) -> Vec<Mat2> 
 }
 
 /// `J + εI` on `W`'s block pattern in compressed columns, its symbolic LU kept between steps.
-struct DirectJacobian {
+pub(crate) struct DirectJacobian {
     w: BlockSparse,
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
@@ -125,7 +125,7 @@ struct DirectJacobian {
 }
 
 impl DirectJacobian {
-    fn new(w: BlockSparse) -> Result<Self, String> {
+    pub(crate) fn new(w: BlockSparse) -> Result<Self, String> {
         let nc = w.n_contacts();
         let mut entries = Vec::with_capacity(4 * w.blocks.len());
         let mut has_diagonal = vec![false; nc];
@@ -156,9 +156,8 @@ impl DirectJacobian {
         Ok(Self { w, col_ptr, row_idx, source, values, symbolic })
     }
 
-    /// Factorises `J + εI` at the current blocks and solves `x = (J + εI)⁻¹ b` in place;
-    /// false when the factorisation fails (`x` then untouched).
-    fn solve(&mut self, jac: &[AcBlocks], eps: f64, x: &mut [f64]) -> bool {
+    /// Factorises `J + εI` at the current blocks (`None` when the factorisation fails).
+    pub(crate) fn factorise(&mut self, jac: &[AcBlocks], eps: f64) -> Option<Lu<usize, f64>> {
         for (v, &(k, a, i, j, diagonal)) in self.values.iter_mut().zip(&self.source) {
             let (dr, du) = &jac[a];
             let b = &self.w.blocks[k];
@@ -167,21 +166,28 @@ impl DirectJacobian {
                 *v += dr[2 * i + j] + if i == j { eps } else { 0.0 };
             }
         }
-        let n = x.len();
+        let n = self.col_ptr.len() - 1;
         let pattern = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
-        match Lu::try_new_with_symbolic(self.symbolic.clone(), SparseColMatRef::new(pattern, &self.values)) {
-            Ok(lu) => {
-                let mut y = x.to_vec();
-                lu.solve_in_place(MatMut::from_column_major_slice_mut(&mut y, n, 1));
-                if y.iter().all(|v| v.is_finite()) {
-                    x.copy_from_slice(&y);
-                    return true;
-                }
-                false
-            }
-            Err(_) => false,
-        }
+        Lu::try_new_with_symbolic(self.symbolic.clone(), SparseColMatRef::new(pattern, &self.values)).ok()
     }
+
+    /// Factorises `J + εI` at the current blocks and solves `x = (J + εI)⁻¹ b` in place;
+    /// false when the factorisation fails (`x` then untouched).
+    fn solve(&mut self, jac: &[AcBlocks], eps: f64, x: &mut [f64]) -> bool {
+        self.factorise(jac, eps).is_some_and(|lu| solve_finite(&lu, x))
+    }
+}
+
+/// `x = A⁻¹ x` by a factor of `A`; false (and `x` untouched) when the solution is not finite.
+pub(crate) fn solve_finite(lu: &Lu<usize, f64>, x: &mut [f64]) -> bool {
+    let n = x.len();
+    let mut y = x.to_vec();
+    lu.solve_in_place(MatMut::from_column_major_slice_mut(&mut y, n, 1));
+    if y.iter().all(|v| v.is_finite()) {
+        x.copy_from_slice(&y);
+        return true;
+    }
+    false
 }
 
 /// Restarted GMRES with right preconditioning for `A x = b` from `x = 0`, to relative residual

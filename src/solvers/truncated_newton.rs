@@ -12,14 +12,10 @@
 //! the thresholds. Where the free set has settled, an iteration solves it exactly; where it has
 //! not, the sweep does the work it would have done alone.
 
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{MatMut, Side};
-
 use super::conjugate_gradient::ConjugateGradient;
 use super::monitor::Monitor;
 use super::nlgs::forward_sweep;
+use super::sparse_cholesky::PatternCholesky;
 use super::{SolveReport, SolverKind, SolverOptions};
 use crate::problem::residual::problem_error;
 use crate::problem::{dot, BlockSparse, ContactProblem};
@@ -28,86 +24,45 @@ use crate::problem::{dot, BlockSparse, ContactProblem};
 /// singular. Raised ×100 while the factorisation fails.
 const DELTA: f64 = 1e-8;
 
-/// The Tresca system's matrix on `W`'s scalar pattern (symmetric `W`, lower triangle read).
+/// The Tresca system's matrix on `W`'s pattern: `W` on the free set, identity elsewhere.
 struct TrescaSystem {
-    col_ptr: Vec<usize>,
-    row_idx: Vec<usize>,
-    /// For each stored entry: (block index into `w.blocks`, position in the 2×2 block).
-    source: Vec<(usize, usize)>,
-    values: Vec<f64>,
-    symbolic: SymbolicLlt<usize>,
-    factor: Option<Llt<usize, f64>>,
+    cholesky: PatternCholesky,
     free: Vec<bool>,
     delta: f64,
 }
 
 impl TrescaSystem {
     fn new(w: &BlockSparse) -> Result<Self, String> {
-        let nc = w.n_contacts();
-        let (mut col_ptr, mut row_idx, mut source) = (vec![0usize], Vec::new(), Vec::new());
-        // Column 2c + j holds rows 2a + i for the blocks (c, a) of row c, read transposed
-        // (W is symmetric): W[2a+i, 2c+j] = W(c, a)[2j + i].
-        for c in 0..nc {
-            for j in 0..2 {
-                for k in w.row_ptr[c]..w.row_ptr[c + 1] {
-                    let a = w.cols[k];
-                    for i in 0..2 {
-                        row_idx.push(2 * a + i);
-                        source.push((k, 2 * j + i));
-                    }
-                }
-                col_ptr.push(row_idx.len());
-            }
-        }
-        let n = 2 * nc;
-        let pattern = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-        let symbolic = SymbolicLlt::try_new(pattern, Side::Lower).map_err(|e| format!("{e:?}"))?;
-        let values = vec![0.0; row_idx.len()];
-        Ok(Self { col_ptr, row_idx, source, values, symbolic, factor: None, free: Vec::new(), delta: DELTA })
+        Ok(Self { cholesky: PatternCholesky::new(w)?, free: Vec::new(), delta: DELTA })
     }
 
     /// Factorises the system of the free set `free` (unless it is the one factorised already).
     fn factorise(&mut self, w: &BlockSparse, free: &[bool]) -> bool {
-        if self.factor.is_some() && self.free == free {
+        if self.cholesky.is_factorised() && self.free == free {
             return true;
         }
-        let n = free.len();
         loop {
-            for col in 0..n {
-                for e in self.col_ptr[col]..self.col_ptr[col + 1] {
-                    let row = self.row_idx[e];
-                    let (k, pos) = self.source[e];
-                    self.values[e] = match (free[row] && free[col], row == col) {
-                        (true, true) => w.blocks[k][pos] * (1.0 + self.delta),
-                        (true, false) => w.blocks[k][pos],
-                        (false, true) => 1.0,
-                        (false, false) => 0.0,
-                    };
-                }
+            let delta = self.delta;
+            let entry = |row: usize, col: usize, value: f64| match (free[row] && free[col], row == col) {
+                (true, true) => value * (1.0 + delta),
+                (true, false) => value,
+                (false, true) => 1.0,
+                (false, false) => 0.0,
+            };
+            if self.cholesky.factorise(w, entry) {
+                self.free = free.to_vec();
+                return true;
             }
-            let pattern = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
-            let matrix = SparseColMatRef::new(pattern, &self.values);
-            match Llt::try_new_with_symbolic(self.symbolic.clone(), matrix, Side::Lower) {
-                Ok(f) => {
-                    self.factor = Some(f);
-                    self.free = free.to_vec();
-                    return true;
-                }
-                Err(_) if self.delta < 1e-2 => self.delta *= 100.0,
-                Err(_) => {
-                    self.factor = None;
-                    return false;
-                }
+            if self.delta >= 1e-2 {
+                return false;
             }
+            self.delta *= 100.0;
         }
     }
 
     /// Solves in place (`rhs` zero on the truncated components).
     fn solve(&self, rhs: &mut [f64]) {
-        if let Some(f) = &self.factor {
-            let n = rhs.len();
-            f.solve_in_place(MatMut::from_column_major_slice_mut(rhs, n, 1));
-        }
+        self.cholesky.solve(rhs);
     }
 }
 

@@ -1,0 +1,77 @@
+//! Sparse Cholesky (faer) of symmetric matrices on `W`'s scalar pattern, the symbolic
+//! factorisation done once: `W` truncated to a free set (NLGS–Newton's Tresca correction) or
+//! `W` plus a barrier's diagonal blocks (the interior point's Newton system).
+
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{MatMut, Side};
+
+use crate::problem::BlockSparse;
+
+/// A matrix on `W`'s scalar pattern and its Cholesky factor.
+pub(crate) struct PatternCholesky {
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    /// For each stored entry: (block index into `w.blocks`, position in the 2×2 block).
+    source: Vec<(usize, usize)>,
+    values: Vec<f64>,
+    symbolic: SymbolicLlt<usize>,
+    factor: Option<Llt<usize, f64>>,
+}
+
+impl PatternCholesky {
+    /// The pattern of `w` (symmetric; every stored block, the lower triangle is read).
+    pub(crate) fn new(w: &BlockSparse) -> Result<Self, String> {
+        let nc = w.n_contacts();
+        let (mut col_ptr, mut row_idx, mut source) = (vec![0usize], Vec::new(), Vec::new());
+        // Column 2c + j holds rows 2a + i for the blocks (c, a) of row c, read transposed
+        // (W is symmetric): W[2a+i, 2c+j] = W(c, a)[2j + i].
+        for c in 0..nc {
+            for j in 0..2 {
+                for k in w.row_ptr[c]..w.row_ptr[c + 1] {
+                    let a = w.cols[k];
+                    for i in 0..2 {
+                        row_idx.push(2 * a + i);
+                        source.push((k, 2 * j + i));
+                    }
+                }
+                col_ptr.push(row_idx.len());
+            }
+        }
+        let n = 2 * nc;
+        let pattern = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
+        let symbolic = SymbolicLlt::try_new(pattern, Side::Lower).map_err(|e| format!("{e:?}"))?;
+        let values = vec![0.0; row_idx.len()];
+        Ok(Self { col_ptr, row_idx, source, values, symbolic, factor: None })
+    }
+
+    /// Factorises the matrix whose entry (row, col) is `entry(row, col, W[row, col])`; false
+    /// (and no factor) when it is not numerically positive definite.
+    pub(crate) fn factorise(&mut self, w: &BlockSparse, entry: impl Fn(usize, usize, f64) -> f64) -> bool {
+        let n = self.col_ptr.len() - 1;
+        for col in 0..n {
+            for e in self.col_ptr[col]..self.col_ptr[col + 1] {
+                let (k, pos) = self.source[e];
+                self.values[e] = entry(self.row_idx[e], col, w.blocks[k][pos]);
+            }
+        }
+        let pattern = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
+        let matrix = SparseColMatRef::new(pattern, &self.values);
+        self.factor = Llt::try_new_with_symbolic(self.symbolic.clone(), matrix, Side::Lower).ok();
+        self.factor.is_some()
+    }
+
+    /// Whether a factor is held.
+    pub(crate) fn is_factorised(&self) -> bool {
+        self.factor.is_some()
+    }
+
+    /// Solves in place with the last factor (leaves `rhs` as it is when there is none).
+    pub(crate) fn solve(&self, rhs: &mut [f64]) {
+        if let Some(f) = &self.factor {
+            let n = rhs.len();
+            f.solve_in_place(MatMut::from_column_major_slice_mut(rhs, n, 1));
+        }
+    }
+}
