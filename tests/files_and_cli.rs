@@ -96,8 +96,8 @@ fn solve_command_writes_the_report_and_fails_cleanly_on_bad_input() {
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("missing.dat"));
     let out = moreau().arg("solve").arg(&file).args(["--tol", "nan"]).output().unwrap();
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--tol"));
-    // Without --solver: NLGS–Newton at tight tolerances, NLGS above, and it says so.
-    for (tol, solver) in [("1e-8", "nlgs-newton"), ("1e-6", "nlgs-newton"), ("1e-4", "nlgs")] {
+    // Without --solver: the interior point at tight tolerances, NLGS above, and it says so.
+    for (tol, solver) in [("1e-8", "interior-point"), ("1e-6", "interior-point"), ("1e-4", "nlgs")] {
         let out = moreau().arg("solve").arg(&file).args(["--device", "cpu", "--tol", tol]).output().unwrap();
         let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
         assert!(out.status.success() && stdout.starts_with(&format!("{solver} on cpu")), "{tol}: {stdout}");
