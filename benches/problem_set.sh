@@ -26,5 +26,5 @@ shared=../shared/data/siconos-fc2d
 if [ -d "$shared" ]; then cp "$shared"/*.dat "$out/problems/"; fi
 # newton (the Alart–Curnier prototype) is left out: an iteration is a Newton step of up to 120
 # products, so the shared iteration cap would let it run for many minutes on the frictional files.
-"${moreau[@]}" sweep "$out/problems" --devices cpu --solvers nlgs,pcpg,cpg,jacobi,apgd,latin,nlgs-newton \
+"${moreau[@]}" sweep "$out/problems" --devices cpu --solvers nlgs,pcpg,cpg,jacobi,apgd,latin,nlgs-newton,interior-point \
     --tols 1e-2,1e-4,1e-6,1e-8 --profile-tol 1e-6,1e-4,1e-8 --max-iter 20000 --out "$out/sweep"
