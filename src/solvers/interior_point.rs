@@ -225,8 +225,13 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>, coupled: b
     monitor.add_setup_products(1);
 
     let mut delta = DELTA;
-    let (mut dr_aff, mut dz_aff, mut dr, mut dz, mut comp) =
-        (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let mut work = Directions {
+        dr_aff: vec![0.0; n],
+        dz_aff: vec![0.0; n],
+        dr: vec![0.0; n],
+        dz: vec![0.0; n],
+        comp: vec![0.0; n],
+    };
     let (mut last_step, mut symmetric_steps) = (1.0f64, 0usize);
     let (mut best, mut best_at) = (f64::INFINITY, 0usize);
     loop {
@@ -268,12 +273,7 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>, coupled: b
                 rhs.iter().all(|x| x.is_finite())
             }
         };
-        // Predictor (pure Newton, complementarity target 0), then the corrector centred at
-        // σ times the gap, σ = (predicted gap / gap)³, with the predictor's second-order term.
-        for ((c, g), z) in comp.iter_mut().zip(&it.g).zip(&it.z) {
-            *c = -g * z;
-        }
-        if !newton_direction(&it, &comp, &solve, &mut dr_aff, &mut dz_aff) {
+        if !mehrotra_direction(&it, gap, m_total, &solve, &mut work) {
             if matches!(factor, Factor::Coupled(_)) {
                 // The LU went singular near the end (z/g spans 1e20): the next try is symmetric.
                 last_step = 0.0;
@@ -282,28 +282,8 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>, coupled: b
             monitor.stop_with(StopReason::Stalled, FLOOR);
             break;
         }
-        let step_aff = it.max_step(&dr_aff, &dz_aff);
-        let mut gap_aff = 0.0;
-        for a in 0..nc {
-            for k in 0..it.constraints(a) {
-                let i = 2 * a + k;
-                let dg = it.along(a, k, &dr_aff);
-                gap_aff += (it.g[i] + step_aff * dg) * (it.z[i] + step_aff * dz_aff[i]);
-                comp[i] = -dg * dz_aff[i];
-            }
-        }
-        let target = (gap_aff / gap).powi(3).min(1.0) * gap / m_total as f64;
-        for a in 0..nc {
-            for k in 0..it.constraints(a) {
-                let i = 2 * a + k;
-                comp[i] += target - it.g[i] * it.z[i];
-            }
-        }
-        if !(target.is_finite() && newton_direction(&it, &comp, &solve, &mut dr, &mut dz)) {
-            monitor.stop_with(StopReason::Stalled, FLOOR);
-            break;
-        }
-        last_step = (TO_BOUNDARY * it.max_step(&dr, &dz)).min(1.0);
+        let Directions { dr, dz, .. } = &work;
+        last_step = (TO_BOUNDARY * it.max_step(dr, dz)).min(1.0);
         for i in 0..n {
             it.r[i] += last_step * dr[i];
             it.z[i] += last_step * dz[i];
@@ -315,6 +295,52 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>, coupled: b
         monitor.note(format!("{symmetric_steps} steps with the friction shift frozen (jammed or no LU)"));
     }
     monitor.finish(it.r)
+}
+
+/// The predictor's and the corrector's directions, and the complementarity targets.
+struct Directions {
+    dr_aff: Vec<f64>,
+    dz_aff: Vec<f64>,
+    dr: Vec<f64>,
+    dz: Vec<f64>,
+    comp: Vec<f64>,
+}
+
+/// Mehrotra's step into `work.dr, work.dz`: the predictor (pure Newton, complementarity target
+/// 0), then the corrector centred at σ times the mean gap, σ = (predicted gap / gap)³, with the
+/// predictor's second-order term. False when a direction is not finite.
+fn mehrotra_direction(
+    it: &Iterate,
+    gap: f64,
+    m_total: usize,
+    solve: &impl Fn(&mut [f64]) -> bool,
+    work: &mut Directions,
+) -> bool {
+    let Directions { dr_aff, dz_aff, dr, dz, comp } = work;
+    for ((c, g), z) in comp.iter_mut().zip(&it.g).zip(&it.z) {
+        *c = -g * z;
+    }
+    if !newton_direction(it, comp, solve, dr_aff, dz_aff) {
+        return false;
+    }
+    let step_aff = it.max_step(dr_aff, dz_aff);
+    let mut gap_aff = 0.0;
+    for a in 0..it.p.n_contacts() {
+        for k in 0..it.constraints(a) {
+            let i = 2 * a + k;
+            let dg = it.along(a, k, dr_aff);
+            gap_aff += (it.g[i] + step_aff * dg) * (it.z[i] + step_aff * dz_aff[i]);
+            comp[i] = -dg * dz_aff[i];
+        }
+    }
+    let target = (gap_aff / gap).powi(3).min(1.0) * gap / m_total as f64;
+    for a in 0..it.p.n_contacts() {
+        for k in 0..it.constraints(a) {
+            let i = 2 * a + k;
+            comp[i] += target - it.g[i] * it.z[i];
+        }
+    }
+    target.is_finite() && newton_direction(it, comp, solve, dr, dz)
 }
 
 /// The Newton matrix's blocks in [`DirectJacobian`]'s form `D_r + D_u W`: `D_r` the barrier
