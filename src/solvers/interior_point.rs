@@ -33,8 +33,8 @@ use crate::problem::{BlockSparse, ContactProblem, Mat2};
 
 /// Fraction of the way to the cone boundary a step may go.
 const TO_BOUNDARY: f64 = 0.995;
-/// Regularisation of the Newton matrix relative to `W`'s diagonal, raised ×100 (up to 1e-2)
-/// while a factorisation fails: an indefinite `W` read from a file.
+/// Regularisation of the symmetric Newton matrix relative to `W`'s diagonal, raised ×100 (up to
+/// 1e-2) while its factorisation fails: an indefinite `W` read from a file.
 const DELTA: f64 = 1e-10;
 /// A step shorter than this is jammed against the boundary: the next step drops the shift's
 /// derivative (measured on the problem set: 0.01 keeps 34 iterations on the 7,002-contact Siconos
@@ -370,23 +370,14 @@ fn factorise_symmetric(
     delta: &mut f64,
 ) -> bool {
     let pinned = |i: usize| i % 2 == 1 && it.p.mu[i / 2] == 0.0;
-    loop {
-        let d = *delta;
-        let entry = |row: usize, col: usize, value: f64| {
-            if pinned(row) || pinned(col) {
-                return if row == col { 1.0 } else { 0.0 };
-            }
-            let barrier = if row / 2 == col / 2 { blocks[row / 2][2 * (row % 2) + col % 2] } else { 0.0 };
-            value * if row == col { 1.0 + d } else { 1.0 } + barrier
-        };
-        if cholesky.factorise(w, entry) {
-            return true;
+    let entry = |row: usize, col: usize, value: f64, d: f64| {
+        if pinned(row) || pinned(col) {
+            return if row == col { 1.0 } else { 0.0 };
         }
-        if *delta >= 1e-2 {
-            return false;
-        }
-        *delta *= 100.0;
-    }
+        let barrier = if row / 2 == col / 2 { blocks[row / 2][2 * (row % 2) + col % 2] } else { 0.0 };
+        value * if row == col { 1.0 + d } else { 1.0 } + barrier
+    };
+    cholesky.factorise_regularised(w, delta, entry)
 }
 
 /// The Newton direction `(dr, dz)` whose complementarity rows ask `g z + z A dr + g dz = g z + comp`.

@@ -58,7 +58,7 @@ pub enum SolverKind {
     Newton,
     /// NLGS sweeps, each followed by a truncated Newton correction of the Tresca problem they define.
     NlgsNewton,
-    /// Primal–dual interior point on the De Saxcé fixed point (a convex QP per shift).
+    /// Primal–dual interior point on De Saxcé's form of Coulomb's law (each 2D cone a wedge), NLGS sweeps from its iterate when it stops short.
     InteriorPoint,
 }
 

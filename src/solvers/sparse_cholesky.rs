@@ -9,6 +9,9 @@ use faer::{MatMut, Side};
 
 use crate::problem::BlockSparse;
 
+/// The largest regularisation [`PatternCholesky::factorise_regularised`] tries.
+const MAX_DELTA: f64 = 1e-2;
+
 /// A matrix on `W`'s scalar pattern and its Cholesky factor.
 pub(crate) struct PatternCholesky {
     col_ptr: Vec<usize>,
@@ -46,9 +49,30 @@ impl PatternCholesky {
         Ok(Self { col_ptr, row_idx, source, values, symbolic, factor: None })
     }
 
+    /// Factorises the matrix whose entry (row, col) is `entry(row, col, W[row, col], δ)`, a
+    /// regularisation `δ` (`delta`) raised ×100 while the factorisation fails (redundant contacts,
+    /// an indefinite `W` read from a file); false (and no factor) once even δ = 1e-2 fails.
+    pub(crate) fn factorise_regularised(
+        &mut self,
+        w: &BlockSparse,
+        delta: &mut f64,
+        entry: impl Fn(usize, usize, f64, f64) -> f64,
+    ) -> bool {
+        loop {
+            let d = *delta;
+            if self.factorise(w, |row, col, value| entry(row, col, value, d)) {
+                return true;
+            }
+            if *delta >= MAX_DELTA {
+                return false;
+            }
+            *delta *= 100.0;
+        }
+    }
+
     /// Factorises the matrix whose entry (row, col) is `entry(row, col, W[row, col])`; false
     /// (and no factor) when it is not numerically positive definite.
-    pub(crate) fn factorise(&mut self, w: &BlockSparse, entry: impl Fn(usize, usize, f64) -> f64) -> bool {
+    fn factorise(&mut self, w: &BlockSparse, entry: impl Fn(usize, usize, f64) -> f64) -> bool {
         let n = self.col_ptr.len() - 1;
         for col in 0..n {
             for e in self.col_ptr[col]..self.col_ptr[col + 1] {

@@ -41,23 +41,17 @@ impl TrescaSystem {
         if self.cholesky.is_factorised() && self.free == free {
             return true;
         }
-        loop {
-            let delta = self.delta;
-            let entry = |row: usize, col: usize, value: f64| match (free[row] && free[col], row == col) {
-                (true, true) => value * (1.0 + delta),
-                (true, false) => value,
-                (false, true) => 1.0,
-                (false, false) => 0.0,
-            };
-            if self.cholesky.factorise(w, entry) {
-                self.free = free.to_vec();
-                return true;
-            }
-            if self.delta >= 1e-2 {
-                return false;
-            }
-            self.delta *= 100.0;
+        let entry = |row: usize, col: usize, value: f64, delta: f64| match (free[row] && free[col], row == col) {
+            (true, true) => value * (1.0 + delta),
+            (true, false) => value,
+            (false, true) => 1.0,
+            (false, false) => 0.0,
+        };
+        let factorised = self.cholesky.factorise_regularised(w, &mut self.delta, entry);
+        if factorised {
+            self.free = free.to_vec();
         }
+        factorised
     }
 
     /// Solves in place (`rhs` zero on the truncated components).
