@@ -21,11 +21,14 @@
 //! Either way NLGS sweeps go on from its iterate with the rest of the budget: from there they
 //! reach 1e-12 on the Siconos 2,020- and 7,002-contact files, where from zero they cycle at
 //! 5e-7 and 1.6e-8. The report's notes give each part.
-
-use faer::sparse::linalg::solvers::Lu;
+//!
+//! The factors' sizes are known from the symbolic Cholesky before any numeric work: an LU that
+//! would not fit in half the memory available is not attempted (every step then freezes the
+//! shift; a 980,700-contact lattice needs 3.4 GB instead of 14 GB and more), and a solve whose
+//! Cholesky would not fit stops before its first step (NLGS then goes on), never killed for memory.
 
 use super::monitor::Monitor;
-use super::newton::{solve_finite, AcBlocks, DirectJacobian};
+use super::newton::{AcBlocks, DirectJacobian};
 use super::sparse_cholesky::PatternCholesky;
 use super::stopping::StopReason;
 use super::{nlgs, HistoryPoint, SolveReport, SolverKind, SolverOptions};
@@ -44,6 +47,12 @@ const JAMMED: f64 = 0.01;
 const FLOOR: &str = "stalled at the floor of f64 arithmetic: the complementarity gap underflowed";
 /// Iterations without a 1 % gain on the best error after which the solve is stalled.
 const STALL_WINDOW: usize = 50;
+/// Bytes of the coupled Newton matrix's sparse LU per entry of the Cholesky factor on `W`'s
+/// pattern, an upper bound measured with faer's LU (COLAMD, partial pivoting): 5.7× the
+/// Cholesky's bytes at 67,094 contacts, 13× at 500,500 (a lattice); 16× here.
+const LU_BYTES_PER_CHOLESKY_ENTRY: usize = 128;
+/// Bytes of the Cholesky factor and its copy of the matrix per factor entry.
+const CHOLESKY_BYTES_PER_ENTRY: usize = 16;
 
 /// The constraint rows of a contact with friction `mu` (coefficients of `(r_n, r_t)`): the
 /// wedge's two edges, or `r_n ≥ 0` alone (second row zero) when it is frictionless.
@@ -137,13 +146,13 @@ impl Iterate<'_> {
 enum Factor {
     /// `W + D` (shift frozen), by the Cholesky factor held in the solve's [`PatternCholesky`].
     Symmetric,
-    /// `(I + E) W + D`, by sparse LU.
-    Coupled(Box<Lu<usize, f64>>),
+    /// `(I + E) W + D`, by the sparse LU held in the solve's [`DirectJacobian`].
+    Coupled,
 }
 
 /// Solves from `r0` (pushed inside the cones) by the interior point method above.
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>) -> SolveReport {
-    let ip = solve_with(p, opts, r0, true);
+    let ip = solve_with(p, opts, r0, true, available_memory().map(|bytes| bytes / 2));
     let left = opts.max_iter.saturating_sub(ip.iterations);
     if ip.converged || left == 0 || !matches!(ip.stop, StopReason::Stalled | StopReason::Breakdown) {
         return ip;
@@ -177,8 +186,33 @@ fn finished_by_sweeps(ip: SolveReport, finish: SolveReport) -> SolveReport {
     SolveReport { solver: SolverKind::InteriorPoint, iterations, seconds, w_products, history, notes, iterates, ..best }
 }
 
-/// [`solve`], with the friction shift's derivative in the Newton matrix (`coupled`) or frozen.
-fn solve_with(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>, coupled: bool) -> SolveReport {
+/// The memory the system says is available (Linux's `MemAvailable`); `None` where unknown.
+fn available_memory() -> Option<usize> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: usize = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// A size in bytes for messages (MB or GB).
+fn size(bytes: usize) -> String {
+    if bytes < 1_000_000_000 {
+        format!("{:.1} MB", bytes as f64 / 1e6)
+    } else {
+        format!("{:.1} GB", bytes as f64 / 1e9)
+    }
+}
+
+/// [`solve`], with the friction shift's derivative in the Newton matrix (`coupled`) or frozen,
+/// its factorisations kept within `memory` bytes (the coupled step's LU dropped, or the solve
+/// stopped before it starts, when their estimated size exceeds it).
+fn solve_with(
+    p: &ContactProblem,
+    opts: &SolverOptions,
+    r0: Vec<f64>,
+    coupled: bool,
+    memory: Option<usize>,
+) -> SolveReport {
     let mut monitor = Monitor::new(p, opts, SolverKind::InteriorPoint, &r0);
     // A start that already solves the problem (a warm start, or r = 0 at q = 0) is kept: the
     // iterates below are strictly inside the cones and would only approach it.
@@ -195,7 +229,29 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>, coupled: b
             return monitor.finish(r0);
         }
     };
-    let mut lu = if p.is_frictionless() || !coupled { None } else { DirectJacobian::new(w.clone()).ok() };
+    let entries = cholesky.factor_entries();
+    let cholesky_bytes = CHOLESKY_BYTES_PER_ENTRY * entries;
+    if let Some(memory) = memory.filter(|&m| cholesky_bytes > m) {
+        let why = format!(
+            "the Newton matrix's Cholesky factor would need about {}, more than the {} it may use \
+             (half the memory available)",
+            size(cholesky_bytes),
+            size(memory)
+        );
+        monitor.stop_with(StopReason::Breakdown, why);
+        return monitor.finish(r0);
+    }
+    let lu_bytes = LU_BYTES_PER_CHOLESKY_ENTRY * entries;
+    let lu_fits = memory.is_none_or(|m| lu_bytes <= m);
+    let mut lu = if p.is_frictionless() || !coupled || !lu_fits { None } else { DirectJacobian::new(w.clone()).ok() };
+    if coupled && !p.is_frictionless() && !lu_fits {
+        monitor.note(format!(
+            "no sparse LU of the coupled Newton matrix: it would need up to {}, more than the {} it may \
+             use; every step freezes the friction shift (Cholesky)",
+            size(lu_bytes),
+            size(memory.unwrap_or(0))
+        ));
+    }
     let diag = p.w.diag_blocks();
     let mean_diag = diag.iter().map(|d| d[0] + d[3]).sum::<f64>() / n.max(1) as f64;
     let m_total: usize = p.mu.iter().map(|&m| if m > 0.0 { 2 } else { 1 }).sum();
@@ -249,13 +305,13 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>, coupled: b
         }
         let gap = it.residuals();
         let blocks: Vec<Mat2> = (0..nc).map(|a| it.barrier(a)).collect();
-        let coupled = lu.as_mut().filter(|_| last_step >= JAMMED).and_then(|d| {
+        let coupled = lu.as_mut().filter(|_| last_step >= JAMMED).is_some_and(|d| {
             let jac = coupled_blocks(&it, &blocks);
             d.factorise(&jac, delta * mean_diag)
         });
         let factor = match coupled {
-            Some(f) => Factor::Coupled(Box::new(f)),
-            None => {
+            true => Factor::Coupled,
+            false => {
                 symmetric_steps += usize::from(lu.is_some());
                 if !factorise_symmetric(&mut cholesky, &w, &it, &blocks, &mut delta) {
                     let why =
@@ -267,14 +323,14 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>, coupled: b
             }
         };
         let solve = |rhs: &mut [f64]| match &factor {
-            Factor::Coupled(f) => solve_finite(f, rhs),
+            Factor::Coupled => lu.as_ref().is_some_and(|d| d.solve_factorised(rhs)),
             Factor::Symmetric => {
                 cholesky.solve(rhs);
                 rhs.iter().all(|x| x.is_finite())
             }
         };
         if !mehrotra_direction(&it, gap, m_total, &solve, &mut work) {
-            if matches!(factor, Factor::Coupled(_)) {
+            if matches!(factor, Factor::Coupled) {
                 // The LU went singular near the end (z/g spans 1e20): the next try is symmetric.
                 last_step = 0.0;
                 continue;
@@ -449,11 +505,34 @@ mod tests {
         for mu in [0.3, 0.8] {
             let p = lattice_packing(16, 8, mu, 3);
             let opts = SolverOptions { tol: 1e-10, max_iter: 60, ..Default::default() };
-            let coupled = solve_with(&p, &opts, zero(&p), true);
-            let frozen = solve_with(&p, &opts, zero(&p), false);
+            let coupled = solve_with(&p, &opts, zero(&p), true, None);
+            let frozen = solve_with(&p, &opts, zero(&p), false, None);
             assert!(coupled.converged, "mu {mu}: {} ({:e})", coupled.stop_reason, coupled.error);
             assert!(frozen.error > 100.0 * opts.tol, "mu {mu}: frozen shift reached {:e}", frozen.error);
         }
+    }
+
+    /// A Newton matrix whose factors would not fit in memory is never factorised: without room
+    /// for the LU every step freezes the shift, without room for the Cholesky the solve stops
+    /// before its first step and says why; either way the public solve goes on with NLGS and
+    /// its answer is judged by the same error.
+    #[test]
+    fn factors_that_would_not_fit_in_memory_are_not_attempted() {
+        let p = lattice_packing(12, 6, 0.5, 7);
+        let opts = SolverOptions { tol: 1e-8, max_iter: 2_000, ..Default::default() };
+        let w = p.w.to_block_sparse();
+        let entries = PatternCholesky::new(&w).unwrap().factor_entries();
+        let no_lu = solve_with(&p, &opts, zero(&p), true, Some(CHOLESKY_BYTES_PER_ENTRY * entries));
+        assert!(no_lu.notes.iter().any(|n| n.contains("no sparse LU")), "{:?}", no_lu.notes);
+        let frozen = solve_with(&p, &opts, zero(&p), false, None);
+        assert_eq!(no_lu.error, frozen.error, "the LU-less solve is the frozen-shift one");
+
+        let nothing = solve_with(&p, &opts, zero(&p), true, Some(CHOLESKY_BYTES_PER_ENTRY * entries - 1));
+        assert!(nothing.stop == StopReason::Breakdown && nothing.stop_reason.contains("Cholesky factor would need"));
+        assert!(nothing.iterations <= 1, "{} iterations", nothing.iterations);
+        let sweeps = finished_by_sweeps(nothing, nlgs::solve(&p, &opts, zero(&p)));
+        assert!(sweeps.converged, "{} ({:e})", sweeps.stop_reason, sweeps.error);
+        assert!(sweeps.notes.iter().any(|n| n.contains("then NLGS from its iterate")), "{:?}", sweeps.notes);
     }
 
     /// The returned impulses lie in the cones, and a solve that cannot go on says why.

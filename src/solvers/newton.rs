@@ -13,10 +13,10 @@
 //! returned, landed on it (one product more a step). When no step decreases it, a batch of NLGS sweeps takes over and Newton
 //! tries again from there. (`nlgs-newton` is another method: [`super::truncated_newton`].)
 
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::lu::{factorize_symbolic_lu, LuRef, NumericLu, SymbolicLu};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::MatMut;
+use faer::{Conj, MatMut, Par};
 use serde::Serialize;
 
 use super::monitor::Monitor;
@@ -112,7 +112,9 @@ fn block_preconditioner(jac: &[AcBlocks], diag: &[Mat2], eps: f64) -> Vec<Mat2> 
         .collect()
 }
 
-/// `J + εI` on `W`'s block pattern in compressed columns, its symbolic LU kept between steps.
+/// `J + εI` on `W`'s block pattern in compressed columns, its symbolic LU kept between steps
+/// and its numeric factor's storage and workspace reused (faer's low-level LU: a fresh factor
+/// each step spent a quarter of the interior point's time in the kernel, mapping new pages).
 pub(crate) struct DirectJacobian {
     w: BlockSparse,
     col_ptr: Vec<usize>,
@@ -122,6 +124,10 @@ pub(crate) struct DirectJacobian {
     source: Vec<(usize, usize, usize, usize, bool)>,
     values: Vec<f64>,
     symbolic: SymbolicLu<usize>,
+    numeric: NumericLu<usize, f64>,
+    scratch: MemBuffer,
+    /// Whether `numeric` holds the factor of the last [`DirectJacobian::factorise`].
+    factorised: bool,
 }
 
 impl DirectJacobian {
@@ -151,13 +157,25 @@ impl DirectJacobian {
         let row_idx: Vec<usize> = entries.iter().map(|e| e.1).collect();
         let source = entries.iter().map(|e| e.2).collect();
         let pattern = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-        let symbolic = SymbolicLu::try_new(pattern).map_err(|e| format!("{e:?}"))?;
+        let symbolic = factorize_symbolic_lu(pattern, Default::default()).map_err(|e| format!("{e:?}"))?;
+        let scratch = MemBuffer::try_new(symbolic.factorize_numeric_lu_scratch::<f64>(Par::Seq, Default::default()))
+            .map_err(|e| format!("{e:?}"))?;
         let values = vec![0.0; row_idx.len()];
-        Ok(Self { w, col_ptr, row_idx, source, values, symbolic })
+        Ok(Self {
+            w,
+            col_ptr,
+            row_idx,
+            source,
+            values,
+            symbolic,
+            numeric: NumericLu::new(),
+            scratch,
+            factorised: false,
+        })
     }
 
-    /// Factorises `J + εI` at the current blocks (`None` when the factorisation fails).
-    pub(crate) fn factorise(&mut self, jac: &[AcBlocks], eps: f64) -> Option<Lu<usize, f64>> {
+    /// Factorises `J + εI` at the current blocks; false when the factorisation fails.
+    pub(crate) fn factorise(&mut self, jac: &[AcBlocks], eps: f64) -> bool {
         for (v, &(k, a, i, j, diagonal)) in self.values.iter_mut().zip(&self.source) {
             let (dr, du) = &jac[a];
             let b = &self.w.blocks[k];
@@ -168,26 +186,43 @@ impl DirectJacobian {
         }
         let n = self.col_ptr.len() - 1;
         let pattern = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
-        Lu::try_new_with_symbolic(self.symbolic.clone(), SparseColMatRef::new(pattern, &self.values)).ok()
+        let matrix = SparseColMatRef::new(pattern, &self.values);
+        let stack = MemStack::new(&mut self.scratch);
+        self.factorised =
+            self.symbolic.factorize_numeric_lu(&mut self.numeric, matrix, Par::Seq, stack, Default::default()).is_ok();
+        self.factorised
+    }
+
+    /// `x = (J + εI)⁻¹ x` by the last factor; false (and `x` untouched) when there is none or the
+    /// solution is not finite.
+    pub(crate) fn solve_factorised(&self, x: &mut [f64]) -> bool {
+        let Ok(mut scratch) = MemBuffer::try_new(self.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)) else {
+            return false;
+        };
+        if !self.factorised {
+            return false;
+        }
+        let n = x.len();
+        let mut y = x.to_vec();
+        let lu = LuRef::new_unchecked(&self.symbolic, &self.numeric);
+        lu.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(&mut y, n, 1),
+            Par::Seq,
+            MemStack::new(&mut scratch),
+        );
+        if y.iter().all(|v| v.is_finite()) {
+            x.copy_from_slice(&y);
+            return true;
+        }
+        false
     }
 
     /// Factorises `J + εI` at the current blocks and solves `x = (J + εI)⁻¹ b` in place;
     /// false when the factorisation fails (`x` then untouched).
     fn solve(&mut self, jac: &[AcBlocks], eps: f64, x: &mut [f64]) -> bool {
-        self.factorise(jac, eps).is_some_and(|lu| solve_finite(&lu, x))
+        self.factorise(jac, eps) && self.solve_factorised(x)
     }
-}
-
-/// `x = A⁻¹ x` by a factor of `A`; false (and `x` untouched) when the solution is not finite.
-pub(crate) fn solve_finite(lu: &Lu<usize, f64>, x: &mut [f64]) -> bool {
-    let n = x.len();
-    let mut y = x.to_vec();
-    lu.solve_in_place(MatMut::from_column_major_slice_mut(&mut y, n, 1));
-    if y.iter().all(|v| v.is_finite()) {
-        x.copy_from_slice(&y);
-        return true;
-    }
-    false
 }
 
 /// Restarted GMRES with right preconditioning for `A x = b` from `x = 0`, to relative residual

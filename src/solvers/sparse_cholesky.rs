@@ -1,26 +1,31 @@
 //! Sparse Cholesky (faer) of symmetric matrices on `W`'s scalar pattern, the symbolic
 //! factorisation done once: `W` truncated to a free set (NLGS–Newton's Tresca correction) or
-//! `W` plus a barrier's diagonal blocks (the interior point's Newton system).
+//! `W` plus a barrier's diagonal blocks (the interior point's Newton system). The factor's size
+//! is known from the symbolic step, before any numeric work (the interior point's memory check).
 
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{MatMut, Side};
+use faer::{Conj, MatMut, Par, Side};
 
 use crate::problem::BlockSparse;
 
 /// The largest regularisation [`PatternCholesky::factorise_regularised`] tries.
 const MAX_DELTA: f64 = 1e-2;
 
-/// A matrix on `W`'s scalar pattern and its Cholesky factor.
+/// A matrix on `W`'s scalar pattern and its Cholesky factor (faer's low-level API: the
+/// factor's storage and workspace are reused from one factorisation to the next).
 pub(crate) struct PatternCholesky {
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
     /// For each stored entry: (block index into `w.blocks`, position in the 2×2 block).
     source: Vec<(usize, usize)>,
     values: Vec<f64>,
-    symbolic: SymbolicLlt<usize>,
-    factor: Option<Llt<usize, f64>>,
+    symbolic: SymbolicCholesky<usize>,
+    factor_values: Vec<f64>,
+    scratch: MemBuffer,
+    /// Whether `factor_values` hold the factor of the last factorisation.
+    factorised: bool,
 }
 
 impl PatternCholesky {
@@ -44,9 +49,18 @@ impl PatternCholesky {
         }
         let n = 2 * nc;
         let pattern = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-        let symbolic = SymbolicLlt::try_new(pattern, Side::Lower).map_err(|e| format!("{e:?}"))?;
+        let symbolic = factorize_symbolic_cholesky(pattern, Side::Lower, SymmetricOrdering::Amd, Default::default())
+            .map_err(|e| format!("{e:?}"))?;
+        let scratch = MemBuffer::try_new(symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()))
+            .map_err(|e| format!("{e:?}"))?;
         let values = vec![0.0; row_idx.len()];
-        Ok(Self { col_ptr, row_idx, source, values, symbolic, factor: None })
+        let factor_values = Vec::new();
+        Ok(Self { col_ptr, row_idx, source, values, symbolic, factor_values, scratch, factorised: false })
+    }
+
+    /// Entries of the Cholesky factor (its fill, known before any numeric factorisation).
+    pub(crate) fn factor_entries(&self) -> usize {
+        self.symbolic.len_val()
     }
 
     /// Factorises the matrix whose entry (row, col) is `entry(row, col, W[row, col], δ)`, a
@@ -82,20 +96,41 @@ impl PatternCholesky {
         }
         let pattern = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
         let matrix = SparseColMatRef::new(pattern, &self.values);
-        self.factor = Llt::try_new_with_symbolic(self.symbolic.clone(), matrix, Side::Lower).ok();
-        self.factor.is_some()
+        if self.factor_values.len() != self.symbolic.len_val() {
+            self.factor_values = vec![0.0; self.symbolic.len_val()];
+        }
+        let stack = MemStack::new(&mut self.scratch);
+        let factored = self.symbolic.factorize_numeric_llt(
+            &mut self.factor_values,
+            matrix,
+            Side::Lower,
+            Default::default(),
+            Par::Seq,
+            stack,
+            Default::default(),
+        );
+        self.factorised = factored.is_ok();
+        self.factorised
     }
 
     /// Whether a factor is held.
     pub(crate) fn is_factorised(&self) -> bool {
-        self.factor.is_some()
+        self.factorised
     }
 
     /// Solves in place with the last factor (leaves `rhs` as it is when there is none).
     pub(crate) fn solve(&self, rhs: &mut [f64]) {
-        if let Some(f) = &self.factor {
+        let Ok(mut scratch) = MemBuffer::try_new(self.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)) else {
+            return;
+        };
+        if self.factorised {
             let n = rhs.len();
-            f.solve_in_place(MatMut::from_column_major_slice_mut(rhs, n, 1));
+            LltRef::new(&self.symbolic, &self.factor_values).solve_in_place_with_conj(
+                Conj::No,
+                MatMut::from_column_major_slice_mut(rhs, n, 1),
+                Par::Seq,
+                MemStack::new(&mut scratch),
+            );
         }
     }
 }
