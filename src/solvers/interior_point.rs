@@ -309,18 +309,16 @@ fn solve_with(
             let jac = coupled_blocks(&it, &blocks);
             d.factorise(&jac, delta * mean_diag)
         });
-        let factor = match coupled {
-            true => Factor::Coupled,
-            false => {
-                symmetric_steps += usize::from(lu.is_some());
-                if !factorise_symmetric(&mut cholesky, &w, &it, &blocks, &mut delta) {
-                    let why =
-                        "the Newton matrix W + D is not positive definite even regularised by 1e-2 of its diagonal";
-                    monitor.stop_with(StopReason::Breakdown, why);
-                    break;
-                }
-                Factor::Symmetric
+        let factor = if coupled {
+            Factor::Coupled
+        } else {
+            symmetric_steps += usize::from(lu.is_some());
+            if !factorise_symmetric(&mut cholesky, &w, &it, &blocks, &mut delta) {
+                let why = "the Newton matrix W + D is not positive definite even regularised by 1e-2 of its diagonal";
+                monitor.stop_with(StopReason::Breakdown, why);
+                break;
             }
+            Factor::Symmetric
         };
         let solve = |rhs: &mut [f64]| match &factor {
             Factor::Coupled => lu.as_ref().is_some_and(|d| d.solve_factorised(rhs)),
