@@ -242,15 +242,17 @@ fn solve_with(
         return monitor.finish(r0);
     }
     let lu_bytes = LU_BYTES_PER_CHOLESKY_ENTRY * entries;
-    let lu_fits = memory.is_none_or(|m| lu_bytes <= m);
-    let mut lu = if p.is_frictionless() || !coupled || !lu_fits { None } else { DirectJacobian::new(w.clone()).ok() };
-    if coupled && !p.is_frictionless() && !lu_fits {
-        monitor.note(format!(
-            "no sparse LU of the coupled Newton matrix: it would need up to {}, more than the {} it may \
-             use; every step freezes the friction shift (Cholesky)",
-            size(lu_bytes),
-            size(memory.unwrap_or(0))
-        ));
+    let mut lu = None;
+    if coupled && !p.is_frictionless() {
+        match memory.filter(|&m| lu_bytes > m) {
+            None => lu = DirectJacobian::new(w.clone()).ok(),
+            Some(memory) => monitor.note(format!(
+                "no sparse LU of the coupled Newton matrix: it would need up to {}, more than the {} it \
+                 may use; every step freezes the friction shift (Cholesky)",
+                size(lu_bytes),
+                size(memory)
+            )),
+        }
     }
     let diag = p.w.diag_blocks();
     let mean_diag = diag.iter().map(|d| d[0] + d[3]).sum::<f64>() / n.max(1) as f64;

@@ -196,12 +196,10 @@ impl DirectJacobian {
     /// `x = (J + εI)⁻¹ x` by the last factor; false (and `x` untouched) when there is none or the
     /// solution is not finite.
     pub(crate) fn solve_factorised(&self, x: &mut [f64]) -> bool {
-        let Ok(mut scratch) = MemBuffer::try_new(self.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)) else {
-            return false;
-        };
         if !self.factorised {
             return false;
         }
+        let mut scratch = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
         let n = x.len();
         let mut y = x.to_vec();
         let lu = LuRef::new_unchecked(&self.symbolic, &self.numeric);

@@ -120,10 +120,8 @@ impl PatternCholesky {
 
     /// Solves in place with the last factor (leaves `rhs` as it is when there is none).
     pub(crate) fn solve(&self, rhs: &mut [f64]) {
-        let Ok(mut scratch) = MemBuffer::try_new(self.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)) else {
-            return;
-        };
         if self.factorised {
+            let mut scratch = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
             let n = rhs.len();
             LltRef::new(&self.symbolic, &self.factor_values).solve_in_place_with_conj(
                 Conj::No,
