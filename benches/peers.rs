@@ -32,6 +32,9 @@ struct Row {
     note: String,
 }
 
+/// Anderson depth of the accelerated rows when the scene has none.
+const ANDERSON: usize = 5;
+
 fn env(name: &str, default: usize) -> usize {
     std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)
 }
@@ -98,15 +101,25 @@ fn main() {
         });
     }
 
-    let tolerances = [1e-2, 1e-3, 1e-4].map(|t| (format!("tol {t:.0e}"), Some(t), None));
-    let sweeps = [4usize, 8, 16].map(|k| (format!("{k} sweeps"), None, Some(k)));
+    // (setting, tolerance, fixed sweep count, Anderson depth instead of the scene's): the
+    // scene's solver, and at two tolerances the other side of Anderson acceleration.
+    let (other, named) = match first.settings.options.anderson {
+        0 => (ANDERSON, format!("Anderson {ANDERSON}")),
+        _ => (0, "plain NLGS".to_string()),
+    };
+    let tolerances = [1e-2, 1e-3, 1e-4].map(|t| (format!("tol {t:.0e}"), Some(t), None, None));
+    let mixed = [1e-3, 1e-4].map(|t| (format!("tol {t:.0e}, {named}"), Some(t), None, Some(other)));
+    let sweeps = [4usize, 8, 16].map(|k| (format!("{k} sweeps"), None, Some(k), None));
     let mut thread_counts = vec![1, threads];
     thread_counts.dedup();
     for &t in &thread_counts {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().expect("a thread pool");
-        for (setting, tol, fixed) in tolerances.iter().chain(&sweeps) {
+        for (setting, tol, fixed, anderson) in tolerances.iter().chain(&mixed).chain(&sweeps) {
             let mut s = load();
-            let base = s.settings.options.clone();
+            let base = SolverOptions {
+                anderson: anderson.unwrap_or(s.settings.options.anderson),
+                ..s.settings.options.clone()
+            };
             s.settings.options = match (tol, fixed) {
                 (Some(tol), _) => SolverOptions { tol: *tol, ..base },
                 // A fixed sweep count: a tolerance no sweep reaches.
@@ -178,7 +191,11 @@ fn report(rows: &[Row], scene: &str, bodies: usize) {
     csv.flush().expect("peers.csv");
     // One curve per engine, thread count and family of settings (tolerances, sweep or
     // iteration counts), in order of time.
-    let family = |r: &Row| if r.setting.starts_with("tol") { "tolerance" } else { "fixed sweeps" };
+    let family = |r: &Row| match r.setting.split_once(", ") {
+        Some((_, variant)) => variant,
+        None if r.setting.starts_with("tol") => "tolerance",
+        None => "fixed sweeps",
+    };
     let keys: std::collections::BTreeSet<_> = rows.iter().map(|r| (r.engine, r.threads, family(r))).collect();
     let mut series: Vec<Series> = Vec::new();
     for (engine, threads, fam) in keys {

@@ -6,13 +6,14 @@ set -euo pipefail
 out=${1:-out/problem_set}
 moreau=(cargo run --release --quiet --)
 mkdir -p "$out/problems"
+# --anderson 0: the plain-NLGS trajectory, so the problem set stays the one first measured.
 dump() { # scene, steps to dump..., from a run of the last one
     local scene=$1; shift
     local last=${*: -1} args=()
     for s in "$@"; do args+=(--dump-problem "$s"); done
     local name
     name=$(basename "$scene" .toml)
-    "${moreau[@]}" run "$scene" --device cpu --steps "$last" --quiet --vtk-every 0 --out "$out/runs/$name" "${args[@]}" >/dev/null
+    "${moreau[@]}" run "$scene" --device cpu --anderson 0 --steps "$last" --quiet --vtk-every 0 --out "$out/runs/$name" "${args[@]}" >/dev/null
     for s in "$@"; do
         cp "$out/runs/$name/$(printf 'problem_%06d.dat' "$s")" "$out/problems/${name}_$(printf '%04d' "$s").dat"
     done

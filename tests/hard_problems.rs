@@ -136,6 +136,7 @@ fn the_drum_step_that_broke_the_accelerated_solvers_converges() {
     let status = std::process::Command::new(env!("CARGO_BIN_EXE_moreau"))
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .args(["run", "scenes/rotating_drum.toml", "--device", "cpu", "--threads", "1", "--steps", "100"])
+        .args(["--anderson", "0"]) // the plain-NLGS trajectory these numbers were measured on
         .args(["--quiet", "--vtk-every", "0", "--dump-problem", "100", "--out"])
         .arg(&out)
         .status()

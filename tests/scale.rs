@@ -100,6 +100,15 @@ fn mixed_precision_reaches_1e_8_from_the_gpu() {
         assert!(r.parts[0].error > 1e-8, "{kind}: the f32 part alone should not reach 1e-8");
         assert_eq!(r.iterations, r.parts[0].iterations + r.parts[1].iterations);
     }
+    // Anderson acceleration is CPU-only: the GPU sweeps without it and says so, the f64 finish
+    // on the CPU mixes.
+    let opts = SolverOptions { tol: 1e-8, max_iter: 50_000, anderson: 5, ..Default::default() };
+    let r = backend.solve(&p, SolverKind::Nlgs, &opts, None).unwrap();
+    assert!(r.converged && r.error <= 1e-8, "anderson: {:.2e} ({})", r.error, r.stop_reason);
+    assert!(r.notes.iter().any(|n| n.contains("CPU-only")), "{:?}", r.notes);
+    assert!(r.notes.iter().any(|n| n.starts_with("Anderson acceleration over 5 sweeps")), "{:?}", r.notes);
+    let line = Backend::choose(DeviceChoice::Gpu, SolverKind::Nlgs, &opts).unwrap().describe();
+    assert!(line.contains("Anderson acceleration (anderson = 5) is CPU-only"), "{line}");
 }
 
 #[test]
@@ -162,6 +171,25 @@ fn threaded_nlgs_converges_and_is_the_same_on_two_and_four_threads() {
     }
     let bits = |r: &moreau::SolveReport| r.r.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     assert_eq!(bits(&runs[1]), bits(&runs[2]), "two and four threads sweep in the same colour order");
+    assert_eq!(bits(&runs[1]), bits(&runs[3]), "two threads, run twice");
+}
+
+#[test]
+fn anderson_mixing_runs_on_threads_and_is_the_same_on_two_and_four() {
+    let p = lattice_packing(80, 40, 0.5, 6);
+    let opts = SolverOptions { tol: 1e-8, max_iter: 20_000, ..Default::default() };
+    let mixed = SolverOptions { anderson: 5, ..opts.clone() };
+    let plain = on_threads(2, || solve(&p, SolverKind::Nlgs, &opts, None));
+    let runs: Vec<_> =
+        [1, 2, 4, 2].iter().map(|&t| on_threads(t, || solve(&p, SolverKind::Nlgs, &mixed, None))).collect();
+    for (t, r) in [1, 2, 4, 2].iter().zip(&runs) {
+        assert!(r.converged && r.error <= 1e-8, "{t} threads: {:.2e} {}", r.error, r.stop_reason);
+        assert!(r.notes.iter().any(|n| n.starts_with("Anderson acceleration over 5 sweeps")), "{:?}", r.notes);
+    }
+    // The mixing accelerates the colour-ordered sweeps too. Measured: 666 against 10,387 sweeps.
+    assert!(5 * runs[1].iterations < plain.iterations, "{} against {} sweeps", runs[1].iterations, plain.iterations);
+    let bits = |r: &moreau::SolveReport| r.r.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&runs[1]), bits(&runs[2]), "two and four threads mix in the same order");
     assert_eq!(bits(&runs[1]), bits(&runs[3]), "two threads, run twice");
 }
 

@@ -104,10 +104,15 @@ pub fn gpu_refusal(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
     if opts.keep_iterates {
         return Some("the GPU path keeps no iterates".into());
     }
-    if opts.anderson > 0 {
-        return Some(format!("the GPU's NLGS has no Anderson acceleration (anderson = {})", opts.anderson));
-    }
     None
+}
+
+/// What a GPU solve of `kind` with `opts` leaves out, if anything: Anderson acceleration mixes
+/// on the CPU only, so the GPU's sweeps run without it (a CPU finish keeps it).
+pub fn gpu_omits(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
+    (kind == SolverKind::Nlgs && opts.anderson > 0).then(|| {
+        format!("Anderson acceleration (anderson = {}) is CPU-only: the GPU's sweeps run without it", opts.anderson)
+    })
 }
 
 impl Backend {
@@ -159,6 +164,7 @@ impl Backend {
                 } else {
                     "asked for".into()
                 };
+                let reason = with_omission(reason, kind, opts);
                 Ok(Self { device: Device::Gpu(Arc::new(ctx)), reason })
             }
             DeviceChoice::Auto => {
@@ -172,7 +178,10 @@ impl Backend {
                     ));
                 }
                 match GpuContext::hardware() {
-                    Ok(ctx) => Ok(Self { device: Device::Gpu(Arc::new(ctx)), reason: "hardware GPU found".into() }),
+                    Ok(ctx) => Ok(Self {
+                        device: Device::Gpu(Arc::new(ctx)),
+                        reason: with_omission("hardware GPU found".into(), kind, opts),
+                    }),
                     Err(e) => cpu(e.to_string()),
                 }
             }
@@ -256,6 +265,14 @@ impl Backend {
     }
 }
 
+/// `reason`, and what the GPU leaves out of the solve ([`gpu_omits`]).
+fn with_omission(reason: String, kind: SolverKind, opts: &SolverOptions) -> String {
+    match gpu_omits(kind, opts) {
+        Some(omitted) => format!("{reason}; {omitted}"),
+        None => reason,
+    }
+}
+
 /// A solve as a host program asks for it, by names: checks the options, chooses the device
 /// (`auto`, `cpu`, `gpu`), and solves on `threads` CPU threads (0: all cores). Returns the
 /// report and the device line ([`Backend::describe`]); errors are the command line's words.
@@ -295,8 +312,9 @@ fn solve_mixed(
     opts: &SolverOptions,
     r0: Option<&[f64]>,
 ) -> Result<SolveReport, BackendError> {
-    let gpu_opts = SolverOptions { tol: opts.tol.max(F32_FLOOR), ..opts.clone() };
-    let gpu = crate::gpu::solve(ctx, problem, kind, &gpu_opts, r0)?;
+    let gpu_opts = SolverOptions { tol: opts.tol.max(F32_FLOOR), anderson: 0, ..opts.clone() };
+    let mut gpu = crate::gpu::solve(ctx, problem, kind, &gpu_opts, r0)?;
+    gpu.notes.extend(gpu_omits(kind, opts));
     let finish_on_cpu = !gpu.converged || gpu.error > opts.tol;
     let left = opts.max_iter.saturating_sub(gpu.iterations);
     if !finish_on_cpu || left == 0 || gpu.stop == StopReason::Diverged {
@@ -331,7 +349,7 @@ fn solve_mixed(
         history,
         stop: cpu.stop,
         stop_reason: format!("gpu (f32): {}; cpu (f64): {}", gpu.stop_reason, cpu.stop_reason),
-        notes: cpu.notes,
+        notes: gpu.notes.iter().chain(&cpu.notes).cloned().collect(),
         parts,
         gpu_dispatches: 0,
         gpu_bytes: 0,

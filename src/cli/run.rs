@@ -37,6 +37,9 @@ pub struct RunArgs {
     /// Stopping test of every solve (default: the scene's, else natural).
     #[arg(long, value_enum)]
     criterion: Option<crate::solvers::StopCriterion>,
+    /// NLGS: Anderson acceleration over this many past sweeps (default: the scene's; 0: off).
+    #[arg(long)]
+    anderson: Option<usize>,
     #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
     device: DeviceChoice,
     /// Output directory (default: out/<scene name>).
@@ -208,6 +211,10 @@ fn apply_overrides(scene: &mut scene::Scene, a: &RunArgs) -> Result<()> {
         }
         scene.settings.options.max_iter = m;
     }
+    if let Some(m) = a.anderson {
+        scene.settings.options.anderson = m;
+    }
+    scene.settings.options.validate()?;
     Ok(())
 }
 

@@ -17,6 +17,7 @@
 
 use rayon::prelude::*;
 
+use super::anderson::Anderson;
 use super::monitor::Monitor;
 use super::{Ordering, SolveReport, SolverKind, SolverOptions};
 use crate::parallel::parallel;
@@ -32,9 +33,6 @@ const MIN_TASK: usize = 256;
 
 /// Solves from `r` by NLGS (colour by colour on threads for a large matrix-free problem).
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveReport {
-    if opts.anderson > 0 {
-        return super::anderson::solve(p, opts, r);
-    }
     match &p.w {
         Delassus::MatrixFree(op) if opts.ordering == Ordering::Forward && parallel(p.n_contacts()) => {
             solve_coloured(p, op, opts, &r)
@@ -116,8 +114,16 @@ fn solve_on(
             update_rolling(p, op, opts.omega, a, r, state.body_velocity_mut());
         }
     };
+    let mut anderson = (opts.anderson > 0 && !p.has_rolling())
+        .then(|| Anderson::new(opts.anderson, r.len(), state.body_velocity_mut().len()));
+    if opts.anderson > 0 && p.has_rolling() {
+        monitor.note("Anderson acceleration skipped: the problem has rolling rows (plain NLGS)".into());
+    }
 
     loop {
+        if let Some(mixer) = &mut anderson {
+            mixer.before_sweep(&r);
+        }
         match (colours, &p.w, opts.ordering) {
             (Some(ranges), Delassus::MatrixFree(op), _) => {
                 let roll =
@@ -135,14 +141,20 @@ fn solve_on(
                 order.iter().for_each(|&a| update(a, &mut r, &mut state));
             }
         }
+        if let Some(mixer) = &mut anderson {
+            mixer.after_sweep(p, &mut r, &mut state);
+        }
         if monitor.observe(&r, None) {
             break;
         }
     }
+    if let Some(mixer) = anderson {
+        monitor.note(format!("Anderson acceleration over {} sweeps, {} restarts", opts.anderson, mixer.restarts));
+    }
     monitor.finish(r)
 }
 
-/// One sequential forward sweep in place (the smoother of NLGS–Newton, the map Anderson mixes).
+/// One sequential forward sweep in place (the smoother of NLGS–Newton).
 pub(super) fn forward_sweep(p: &ContactProblem, diag: &[Mat2], omega: f64, r: &mut [f64]) {
     let mut state = p.w.sweep_state(r);
     for a in 0..p.n_contacts() {
