@@ -191,11 +191,13 @@ fn report(rows: &[Row], scene: &str, bodies: usize) {
     csv.flush().expect("peers.csv");
     // One curve per engine, thread count and family of settings (tolerances, sweep or
     // iteration counts), in order of time.
-    let family = |r: &Row| match r.setting.split_once(", ") {
-        Some((_, variant)) => variant,
-        None if r.setting.starts_with("tol") => "tolerance",
-        None => "fixed sweeps",
-    };
+    fn family(r: &Row) -> &str {
+        match r.setting.split_once(", ") {
+            Some((_, variant)) => variant,
+            None if r.setting.starts_with("tol") => "tolerance",
+            None => "fixed sweeps",
+        }
+    }
     let keys: std::collections::BTreeSet<_> = rows.iter().map(|r| (r.engine, r.threads, family(r))).collect();
     let mut series: Vec<Series> = Vec::new();
     for (engine, threads, fam) in keys {
