@@ -47,6 +47,8 @@ typedef struct MoreauSolveOptions {
   size_t max_iter;
   // CPU threads (0: all cores).
   size_t threads;
+  // NLGS: Anderson acceleration over this many past sweeps (0: off; 5 is a good start).
+  size_t anderson;
 } MoreauSolveOptions;
 
 // A solve's numbers (the arrays are copied out with `moreau_solution_copy_r` / `_u`).

@@ -62,6 +62,8 @@ pub struct MoreauSolveOptions {
     pub max_iter: usize,
     /// CPU threads (0: all cores).
     pub threads: usize,
+    /// NLGS: Anderson acceleration over this many past sweeps (0: off; 5 is a good start).
+    pub anderson: usize,
 }
 
 /// A solve's numbers (the arrays are copied out with `moreau_solution_copy_r` / `_u`).
@@ -295,6 +297,7 @@ pub extern "C" fn moreau_solve_options_default() -> MoreauSolveOptions {
         tol: d.tol,
         max_iter: d.max_iter,
         threads: 0,
+        anderson: d.anderson,
     }
 }
 
@@ -313,7 +316,7 @@ pub extern "C" fn moreau_solve(
         let r0 = if r0.is_null() { None } else { Some(slice(r0, 2 * problem.n_contacts(), "r0")?) };
         let solver = text(o.solver, "options.solver")?;
         let device = text(o.device, "options.device")?;
-        let opts = SolverOptions { tol: o.tol, max_iter: o.max_iter, ..SolverOptions::default() };
+        let opts = SolverOptions { tol: o.tol, max_iter: o.max_iter, anderson: o.anderson, ..SolverOptions::default() };
         let (report, device) =
             solve_by_name(problem, solver, device, o.threads, &opts, r0).or_else(|e| fail(MoreauStatus::Solve, e))?;
         let stop_reason = CString::new(report.stop_reason.replace('\0', " ")).unwrap_or_default();

@@ -130,6 +130,12 @@ fn a_c_program_solves_a_siconos_file_as_the_library_does() {
     let sum: f64 = rust.r.iter().step_by(2).sum();
     assert!((field(&out, "sum_rn") - sum).abs() <= 1e-8 * sum.abs(), "{out}: Rust gives {sum:.9e}");
     assert!(field(&out, "error") <= 1e-10 && out.contains("device: cpu"), "{out}");
+    // With Anderson acceleration: the same iterations as the library's.
+    let (code, out, err) = run(&program, &[file.to_str().unwrap(), "1e-10", "nlgs", "5"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let mixed = moreau::solve(&problem, SolverKind::Nlgs, &SolverOptions { anderson: 5, ..opts }, None);
+    assert!(mixed.converged);
+    assert_eq!(field(&out, "iterations") as usize, mixed.iterations, "{out}");
 }
 
 #[test]
@@ -156,10 +162,11 @@ fn bad_input_through_c_gets_the_command_lines_message_and_a_non_zero_exit() {
     let solve = compile("solve_file");
     let file = repo().join("fuzz/seeds/problem_parser/FC2D_SliderCrankLagrangian00000.dat");
     let file = file.to_str().unwrap();
-    let cases: [(&[&str], &str); 3] = [
+    let cases: [(&[&str], &str); 4] = [
         (&["/no/such/problem.dat"], "/no/such/problem.dat: No such file"),
         (&[file, "-1"], "tol -1: must be finite and > 0"),
         (&[file, "1e-8", "gauss"], "unknown solver \"gauss\" (one of: nlgs,"),
+        (&[file, "1e-8", "nlgs", "51"], "anderson 51: Anderson acceleration keeps at most 50 past sweeps"),
     ];
     for (args, message) in cases {
         let (code, out, err) = run(&solve, args);

@@ -1,7 +1,7 @@
 /* Solves a Siconos fc2d problem file with moreau's C interface and prints what the solve did.
  *
  *   cc -I include examples/c/solve_file.c -L target/release -lmoreau_c -o solve_file
- *   ./solve_file PROBLEM.dat [TOL [SOLVER]]
+ *   ./solve_file PROBLEM.dat [TOL [SOLVER [ANDERSON]]]
  *
  * Exit status: 0 converged, 3 not converged, 1 an error (the message names it). */
 #include <stdio.h>
@@ -16,7 +16,7 @@ static int report_error(const char *what) {
 
 int main(int argc, char **argv) {
     if (argc < 2) {
-        fprintf(stderr, "usage: %s PROBLEM.dat [TOL [SOLVER]]\n", argv[0]);
+        fprintf(stderr, "usage: %s PROBLEM.dat [TOL [SOLVER [ANDERSON]]]\n", argv[0]);
         return 2;
     }
     MoreauProblem *problem = NULL;
@@ -28,6 +28,9 @@ int main(int argc, char **argv) {
     options.max_iter = 100000;
     if (argc > 3) {
         options.solver = argv[3];
+    }
+    if (argc > 4) {
+        options.anderson = (size_t)strtoul(argv[4], NULL, 10);
     }
     MoreauSolution *solution = NULL;
     if (moreau_solve(problem, &options, NULL, &solution) != MOREAU_STATUS_OK) {

@@ -56,6 +56,17 @@ def _f64(a: Any, name: str) -> bytes:
     return arr.astype("<f8", copy=False).tobytes()
 
 
+def _count(x: Any, name: str) -> int:
+    """``x`` as a count (a whole number >= 0), or a MoreauError naming it."""
+    try:
+        whole = not isinstance(x, bool) and int(x) == x and x >= 0
+    except (TypeError, ValueError):
+        whole = False
+    if not whole:
+        raise MoreauError(f"{name} {x}: must be a whole number >= 0")
+    return int(x)
+
+
 def _from(b: bytes, dtype: str, columns: int = 1) -> np.ndarray:
     a = np.frombuffer(b, dtype=dtype).copy()
     return a.reshape(-1, columns) if columns > 1 else a
@@ -167,17 +178,20 @@ def solve(
     threads: int = 0,
     r0: Optional[Any] = None,
     history_every: int = 0,
+    anderson: int = 0,
 ) -> SolveResult:
     """Solves ``problem`` with ``solver`` (one of :data:`SOLVERS`) to the relative natural-map
     error ``tol``, on ``device`` (``cpu``, ``gpu`` or ``auto``) with ``threads`` CPU threads
-    (0: all cores), from ``r0`` (zero if None). Not converging is not an error: the result
-    says so."""
+    (0: all cores), from ``r0`` (zero if None); NLGS mixes its last ``anderson`` sweeps
+    (Anderson acceleration, 0: off). Not converging is not an error: the result says so."""
     if not isinstance(problem, Problem):
         raise MoreauError(f"problem: expected a moreau.Problem, got {type(problem).__name__}")
     if isinstance(max_iter, bool) or int(max_iter) != max_iter or max_iter < 0:
         raise MoreauError(f"max_iter {max_iter}: must be a whole number >= 1")
+    anderson = _count(anderson, "anderson")
     r0_bytes = None if r0 is None else _f64(r0, "r0")
-    d = _moreau.solve(problem._inner, solver, float(tol), int(max_iter), device, int(threads), r0_bytes, int(history_every))
+    d = _moreau.solve(problem._inner, solver, float(tol), int(max_iter), device, int(threads), r0_bytes,
+                      int(history_every), anderson)
     d["r"] = _from(d["r"], "<f8")
     d["u"] = _from(d["u"], "<f8")
     return SolveResult(**d)
@@ -195,11 +209,12 @@ class Simulation:
     """
 
     def __init__(self, world: World, h: float, theta: float = 0.5, alert: Optional[float] = None,
-                 solver: str = "nlgs", tol: float = 1e-4, max_iter: int = 10_000) -> None:
+                 solver: str = "nlgs", tol: float = 1e-4, max_iter: int = 10_000, anderson: int = 0) -> None:
         if isinstance(world, _moreau.Simulation):
             self._inner = world
             return
-        self._inner = _moreau.Simulation(world, h, theta, alert, solver, tol, max_iter)
+        self._inner = _moreau.Simulation(world, h, theta, alert, solver, tol, max_iter,
+                                         _count(anderson, "anderson"))
 
     @classmethod
     def from_scene(cls, path: Path) -> "Simulation":

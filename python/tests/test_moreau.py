@@ -49,6 +49,19 @@ def test_python_and_the_command_line_give_the_same_r(tmp_path, path, solver):
     assert result.error == pytest.approx(from_cli["error"], rel=1e-9, abs=1e-300)
 
 
+def test_anderson_acceleration_from_python_matches_the_command_line(tmp_path):
+    out = tmp_path / "solve.json"
+    args = [cli(), "solve", str(SEED), "--solver", "nlgs", "--tol", "1e-10", "--max-iter", "5000", "--threads", "1"]
+    args += ["--anderson", "5"]
+    subprocess.run(args + ["--device", "cpu", "--out", str(out)], check=True, capture_output=True)
+    from_cli = json.loads(out.read_text())
+    plain = moreau.solve(moreau.read_fc2d(SEED), tol=1e-10, max_iter=5000, threads=1)
+    mixed = moreau.solve(moreau.read_fc2d(SEED), tol=1e-10, max_iter=5000, threads=1, anderson=5)
+    assert mixed.converged and mixed.iterations == from_cli["iterations"]
+    assert np.linalg.norm(mixed.r - np.array(from_cli["r"])) <= 1e-12 * np.linalg.norm(mixed.r)
+    assert plain.converged and plain.iterations != mixed.iterations
+
+
 def test_a_problem_from_scipy_and_from_a_dense_matrix_solves_to_tolerance():
     sparse = pytest.importorskip("scipy.sparse")
     rng = np.random.default_rng(3)
@@ -222,6 +235,9 @@ def test_a_force_and_a_velocity_set_from_python_act_on_the_next_step():
         (lambda: moreau.solve(moreau.read_fc2d(SEED), solver="gauss"), 'unknown solver "gauss" (one of: nlgs,'),
         (lambda: moreau.solve(moreau.read_fc2d(SEED), device="tpu"), 'unknown device "tpu"'),
         (lambda: moreau.solve(moreau.read_fc2d(SEED), r0=[1.0]), "r0 has 1 entries, expected"),
+        (lambda: moreau.solve(moreau.read_fc2d(SEED), anderson=51), "anderson 51: Anderson acceleration keeps at most 50"),
+        (lambda: moreau.solve(moreau.read_fc2d(SEED), anderson=-1), "anderson -1: must be a whole number >= 0"),
+        (lambda: moreau.Simulation(moreau.World([("glass", 2500.0)]), 1e-3, anderson=51), "anderson 51"),
         (lambda: moreau.Problem(np.eye(2), [0.0, float("nan")], [0.1]), "q[1] is not finite"),
         (lambda: moreau.Problem(np.eye(2), [0.0, 0.0], [-0.1]), "mu[0] = -0.1 is not a friction coefficient"),
         (lambda: moreau.Problem(np.eye(3), [0.0, 0.0], [0.1]), "W has shape (3, 3), expected (2, 2)"),
