@@ -297,6 +297,8 @@ fn a_gpu_stepped_pile_reuses_its_buffers_and_its_colouring() {
     let (mut sim, _) = gpu_simulation(ctx, &text);
     sim.keep_problems(true);
     let mut created = Vec::new();
+    let mut last: Option<std::collections::HashMap<_, u32>> = None;
+    let (mut kept, mut new) = (0, 0);
     for _ in 0..40 {
         let r = sim.step().unwrap();
         assert!(r.error.is_finite(), "{r:?}");
@@ -305,8 +307,27 @@ fn a_gpu_stepped_pile_reuses_its_buffers_and_its_colouring() {
             let Delassus::MatrixFree(op) = &p.w else { panic!("a step's problem is matrix-free") };
             let c = op.colouring_if_built().expect("the GPU sweep coloured the graph");
             assert!(c.is_proper(Colouring::neighbours_in(&p.w)));
+            // Contacts carried over keep their colour class (the colouring is repaired, not
+            // rebuilt): one old colour maps to one new colour.
+            let now: std::collections::HashMap<_, u32> =
+                sim.contacts().iter().zip(c.colour_of_each()).map(|(s, c)| (s.contact.key(), c)).collect();
+            if let Some(last) = &last {
+                let mut class = std::collections::HashMap::new();
+                for (key, colour) in &now {
+                    match last.get(key) {
+                        Some(old) => {
+                            kept += 1;
+                            assert_eq!(*class.entry(*old).or_insert(*colour), *colour, "a kept contact changed class");
+                        }
+                        None => new += 1,
+                    }
+                }
+            }
+            last = Some(now);
         }
     }
+    // Measured: 15,291 kept, 778 new.
+    assert!(kept > 10_000 && new > 0, "{kept} contacts kept, {new} new");
     // The first step creates what a step uses; while the grains land the contacts grow into new
     // capacities, then a step finds nearly every size pooled: over the last 20 steps, fewer
     // buffers are created than one step uses (without the pool: 20 steps' worth).

@@ -4,12 +4,17 @@
 //! others. On the matrix-free form the body velocities `M⁻¹ Bᵀ r` are kept up to date, so a
 //! contact update costs O(1) and `W` is never formed.
 //!
-//! On several threads a forward sweep of a large matrix-free problem runs colour by colour
-//! ([`Colouring`]: the contacts of one colour share no moving body, so they are updated at once
-//! with exact Gauss–Seidel semantics, as the GPU does). The problem is first renumbered so each
-//! colour is one contiguous range (a sweep then streams through memory as the sequential one
-//! does). That is a sweep in colour order: the same bits for any thread count ≥ 2; one thread
-//! keeps the sequential reference sweep.
+//! On several threads a forward sweep of a large matrix-free problem runs by blocks, as
+//! sub-domain Gauss–Seidel does (LMGC90; Shojaaee et al.): the contacts, in their order, are cut
+//! into blocks of 1,024, blocks that share no moving body get one colour, and the blocks of a
+//! colour are swept at once, each in contact order ([`block_colours`]). Detection lists contacts
+//! body by body and generators number grains bottom to top, so a block is a band of the packing,
+//! two colours do, and the sweep stays close to the sequential one (fewer sweeps than a sweep in contact-colour order on the settled
+//! 10,000-disk pile: 127 against 161 a step). When the order is not banded the sweep runs colour
+//! by colour instead ([`Colouring`]: the contacts of one colour share no moving body, so they are
+//! updated at once, as the GPU does), on the problem renumbered so each colour is one contiguous
+//! range. Either is exact Gauss–Seidel in its order: the same bits for any thread count ≥ 2; one
+//! thread keeps the sequential reference sweep.
 //!
 //! With rolling resistance each contact's rolling unknown is updated right after its (n, t)
 //! pair, against the new normal impulse: `r_r = clamp(r_r − u_r / W_rr, ±η r_n)` (a block
@@ -35,7 +40,10 @@ const MIN_TASK: usize = 256;
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveReport {
     match &p.w {
         Delassus::MatrixFree(op) if opts.ordering == Ordering::Forward && parallel(p.n_contacts()) => {
-            solve_coloured(p, op, opts, &r)
+            match block_colours(op, p.n_contacts()) {
+                Some(blocks) => solve_on(p, opts, r, Some(Sweep::Blocks(&blocks))),
+                None => solve_coloured(p, op, opts, &r),
+            }
         }
         _ => solve_on(p, opts, r, None),
     }
@@ -82,7 +90,7 @@ fn solve_coloured(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, r: 
     let order: Vec<usize> = colouring.order.iter().map(|&a| a as usize).collect();
     let ranges: Vec<(usize, usize)> =
         (0..colouring.n_colours()).map(|c| (colouring.start[c] as usize, colouring.start[c + 1] as usize)).collect();
-    let mut report = solve_on(&renumbered, opts, renumber(r, &order), Some(&ranges));
+    let mut report = solve_on(&renumbered, opts, renumber(r, &order), Some(Sweep::Colours(&ranges)));
     number_back(&mut report.r, &order);
     number_back(&mut report.u, &order);
     report.iterates.iter_mut().for_each(|x| number_back(x, &order));
@@ -91,12 +99,7 @@ fn solve_coloured(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, r: 
 
 /// Sweeps until the monitor stops: sequentially in `opts.ordering`, or colour range by colour
 /// range on threads when `colours` is given (the problem numbered by colour).
-fn solve_on(
-    p: &ContactProblem,
-    opts: &SolverOptions,
-    mut r: Vec<f64>,
-    colours: Option<&[(usize, usize)]>,
-) -> SolveReport {
+fn solve_on(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, threaded: Option<Sweep>) -> SolveReport {
     let mut monitor = Monitor::new(p, opts, SolverKind::Nlgs, &r);
     let nc = p.n_contacts();
     let diag = p.w.diag_blocks();
@@ -124,11 +127,15 @@ fn solve_on(
         if let Some(mixer) = &mut anderson {
             mixer.before_sweep(&r);
         }
-        match (colours, &p.w, opts.ordering) {
-            (Some(ranges), Delassus::MatrixFree(op), _) => {
+        match (&threaded, &p.w, opts.ordering) {
+            (Some(sweep), Delassus::MatrixFree(op), _) => {
                 let roll =
                     |a: usize, r: &mut SharedSlice, v: &mut SharedSlice| update_rolling(p, op, opts.omega, a, r, v);
-                coloured_sweep(op, ranges, (&local, rolling.map(|_| &roll)), &mut r, state.body_velocity_mut())
+                let solves = (&local, rolling.map(|_| &roll));
+                match sweep {
+                    Sweep::Colours(ranges) => coloured_sweep(op, ranges, solves, &mut r, state.body_velocity_mut()),
+                    Sweep::Blocks(blocks) => block_sweep(op, blocks, solves, &mut r, state.body_velocity_mut()),
+                }
             }
             (_, _, Ordering::Forward) => (0..nc).for_each(|a| update(a, &mut r, &mut state)),
             (_, _, Ordering::Backward) => (0..nc).rev().for_each(|a| update(a, &mut r, &mut state)),
@@ -244,6 +251,107 @@ impl Setter for SharedSlice {
 /// A contact's (n, t) solve, and its rolling update when the problem has rolling rows.
 type LocalSolves<'a, L, G> = (&'a L, Option<&'a G>);
 
+/// How a threaded sweep splits its contacts.
+enum Sweep<'a> {
+    /// Contiguous ranges, one per colour (the problem renumbered by colour).
+    Colours(&'a [(usize, usize)]),
+    /// Per colour, ranges of contacts (blocks) that share no moving body with another block of
+    /// that colour.
+    Blocks(&'a [Vec<(usize, usize)>]),
+}
+
+/// Contacts per block of a block-coloured sweep.
+const BLOCK: usize = 1024;
+
+/// Fewer blocks a colour on average than this, and the contacts' order is not banded enough for
+/// blocks: the sweep colours contacts instead.
+const MIN_BLOCKS_PER_COLOUR: usize = 2;
+
+/// Cuts the contacts, in their order, into blocks of [`BLOCK`] and colours the blocks so that two
+/// of one colour share no moving body; `None` when that leaves too few blocks a colour to share
+/// out (grains numbered in no spatial order).
+pub fn block_colours(op: &MatrixFree, nc: usize) -> Option<Vec<Vec<(usize, usize)>>> {
+    let blocks = nc.div_ceil(BLOCK);
+    let mut touching: Vec<Vec<u32>> = vec![Vec::new(); op.bodies.len()];
+    for a in 0..nc {
+        for b in op.moving_bodies_of(a) {
+            let k = (a / BLOCK) as u32;
+            if touching[b].last() != Some(&k) {
+                touching[b].push(k);
+            }
+        }
+    }
+    let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); blocks];
+    for t in &touching {
+        for &x in t {
+            neighbours[x as usize].extend(t.iter().filter(|&&y| y != x));
+        }
+    }
+    let mut colour = vec![usize::MAX; blocks];
+    for k in 0..blocks {
+        neighbours[k].sort_unstable();
+        neighbours[k].dedup();
+        let taken: Vec<usize> = neighbours[k].iter().map(|&j| colour[j as usize]).collect();
+        colour[k] = (0..).find(|c| !taken.contains(c)).unwrap_or(0);
+    }
+    let n_colours = colour.iter().max().map_or(0, |c| c + 1);
+    if blocks < MIN_BLOCKS_PER_COLOUR * n_colours {
+        return None;
+    }
+    let mut by_colour = vec![Vec::new(); n_colours];
+    for (k, &c) in colour.iter().enumerate() {
+        by_colour[c].push((k * BLOCK, ((k + 1) * BLOCK).min(nc)));
+    }
+    Some(by_colour)
+}
+
+/// One sweep block colour by block colour: the blocks of a colour on threads, each swept in
+/// contact order.
+fn block_sweep<L, G>(
+    op: &MatrixFree,
+    blocks: &[Vec<(usize, usize)>],
+    (local, rolling): LocalSolves<L, G>,
+    r: &mut [f64],
+    v: &mut [f64],
+) where
+    L: Fn(usize, [f64; 2], [f64; 2]) -> [f64; 2] + Sync,
+    G: Fn(usize, &mut SharedSlice, &mut SharedSlice) + Sync,
+{
+    let (shared_r, shared_v) = (SharedSlice::new(r), SharedSlice::new(v));
+    for colour in blocks {
+        colour.par_iter().for_each(|&(first, end)| {
+            let (mut r, mut v) = (shared_r, shared_v);
+            (first..end).for_each(|a| update_shared(op, (local, rolling), a, &mut r, &mut v));
+        });
+    }
+}
+
+/// Contact `a`'s update through shared slices (no other task touches its bodies meanwhile).
+#[inline]
+fn update_shared<L, G>(
+    op: &MatrixFree,
+    (local, rolling): LocalSolves<L, G>,
+    a: usize,
+    r: &mut SharedSlice,
+    v: &mut SharedSlice,
+) where
+    L: Fn(usize, [f64; 2], [f64; 2]) -> [f64; 2] + Sync,
+    G: Fn(usize, &mut SharedSlice, &mut SharedSlice) + Sync,
+{
+    let wr = op.gather_one(a, v);
+    let ra = [r.get(2 * a), r.get(2 * a + 1)];
+    let rn = local(a, ra, wr);
+    let dr = [rn[0] - ra[0], rn[1] - ra[1]];
+    if dr != [0.0, 0.0] {
+        r.set(2 * a, rn[0]);
+        r.set(2 * a + 1, rn[1]);
+        op.scatter_one(a, dr[0], dr[1], v);
+    }
+    if let Some(roll) = rolling {
+        roll(a, r, v);
+    }
+}
+
 /// One sweep in colour order, each colour's contacts (a contiguous range) on threads.
 fn coloured_sweep<L, G>(
     op: &MatrixFree,
@@ -259,18 +367,7 @@ fn coloured_sweep<L, G>(
     for &(first, end) in ranges {
         (first..end).into_par_iter().with_min_len(MIN_TASK).for_each(|a| {
             let (mut r, mut v) = (shared_r, shared_v);
-            let wr = op.gather_one(a, &v);
-            let ra = [r.get(2 * a), r.get(2 * a + 1)];
-            let rn = local(a, ra, wr);
-            let dr = [rn[0] - ra[0], rn[1] - ra[1]];
-            if dr != [0.0, 0.0] {
-                r.set(2 * a, rn[0]);
-                r.set(2 * a + 1, rn[1]);
-                op.scatter_one(a, dr[0], dr[1], &mut v);
-            }
-            if let Some(roll) = rolling {
-                roll(a, &mut r, &mut v);
-            }
+            update_shared(op, (local, rolling), a, &mut r, &mut v);
         });
     }
 }
