@@ -132,10 +132,7 @@ fn solve_on(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, threaded:
                 let roll =
                     |a: usize, r: &mut SharedSlice, v: &mut SharedSlice| update_rolling(p, op, opts.omega, a, r, v);
                 let solves = (&local, rolling.map(|_| &roll));
-                match sweep {
-                    Sweep::Colours(ranges) => coloured_sweep(op, ranges, solves, &mut r, state.body_velocity_mut()),
-                    Sweep::Blocks(blocks) => block_sweep(op, blocks, solves, &mut r, state.body_velocity_mut()),
-                }
+                threaded_sweep(op, sweep, solves, &mut r, state.body_velocity_mut());
             }
             (_, _, Ordering::Forward) => (0..nc).for_each(|a| update(a, &mut r, &mut state)),
             (_, _, Ordering::Backward) => (0..nc).rev().for_each(|a| update(a, &mut r, &mut state)),
@@ -311,27 +308,6 @@ pub fn block_colours(op: &MatrixFree, nc: usize) -> Option<Vec<Vec<(usize, usize
     Some(by_colour)
 }
 
-/// One sweep block colour by block colour: the blocks of a colour on threads, each swept in
-/// contact order.
-fn block_sweep<L, G>(
-    op: &MatrixFree,
-    blocks: &[Vec<(usize, usize)>],
-    (local, rolling): LocalSolves<L, G>,
-    r: &mut [f64],
-    v: &mut [f64],
-) where
-    L: Fn(usize, [f64; 2], [f64; 2]) -> [f64; 2] + Sync,
-    G: Fn(usize, &mut SharedSlice, &mut SharedSlice) + Sync,
-{
-    let (shared_r, shared_v) = (SharedSlice::new(r), SharedSlice::new(v));
-    for colour in blocks {
-        colour.par_iter().for_each(|&(first, end)| {
-            let (mut r, mut v) = (shared_r, shared_v);
-            (first..end).for_each(|a| update_shared(op, (local, rolling), a, &mut r, &mut v));
-        });
-    }
-}
-
 /// Contact `a`'s update through shared slices (no other task touches its bodies meanwhile).
 #[inline]
 fn update_shared<L, G>(
@@ -358,10 +334,11 @@ fn update_shared<L, G>(
     }
 }
 
-/// One sweep in colour order, each colour's contacts (a contiguous range) on threads.
-fn coloured_sweep<L, G>(
+/// One threaded sweep, colour by colour: a colour's contacts (contact colours, a contiguous
+/// range each) or its blocks (each swept in contact order) on threads.
+fn threaded_sweep<L, G>(
     op: &MatrixFree,
-    ranges: &[(usize, usize)],
+    sweep: &Sweep,
     (local, rolling): LocalSolves<L, G>,
     r: &mut [f64],
     v: &mut [f64],
@@ -370,10 +347,20 @@ fn coloured_sweep<L, G>(
     G: Fn(usize, &mut SharedSlice, &mut SharedSlice) + Sync,
 {
     let (shared_r, shared_v) = (SharedSlice::new(r), SharedSlice::new(v));
-    for &(first, end) in ranges {
-        (first..end).into_par_iter().with_min_len(MIN_TASK).for_each(|a| {
-            let (mut r, mut v) = (shared_r, shared_v);
-            update_shared(op, (local, rolling), a, &mut r, &mut v);
-        });
+    let update = |a: usize| {
+        let (mut r, mut v) = (shared_r, shared_v);
+        update_shared(op, (local, rolling), a, &mut r, &mut v);
+    };
+    match sweep {
+        Sweep::Colours(ranges) => {
+            for &(first, end) in *ranges {
+                (first..end).into_par_iter().with_min_len(MIN_TASK).for_each(update);
+            }
+        }
+        Sweep::Blocks(colours) => {
+            for colour in *colours {
+                colour.par_iter().for_each(|&(first, end)| (first..end).for_each(update));
+            }
+        }
     }
 }
