@@ -269,7 +269,7 @@ const MIN_BLOCK: usize = 1024;
 /// blocks: the sweep colours contacts instead.
 const MIN_BLOCKS_PER_COLOUR: usize = 2;
 
-/// Cuts the contacts, in their order, into [`BLOCKS`] blocks (of [`MIN_BLOCK`] contacts at least)
+/// Cuts the contacts, in their order, into 16 blocks (of 1,024 contacts at least)
 /// and colours the blocks so that two of one colour share no moving body; `None` when that leaves
 /// too few blocks a colour to share out (grains numbered in no spatial order).
 pub fn block_colours(op: &MatrixFree, nc: usize) -> Option<Vec<Vec<(usize, usize)>>> {
