@@ -10,10 +10,10 @@
 //! swept at once, each in contact order ([`block_colours`]). Detection lists contacts
 //! body by body and generators number grains bottom to top, so a block is a band of the packing,
 //! two colours do, and the sweep stays close to the sequential one (142 sweeps a step on the
-//! settled 10,000-disk pile against 139 sequentially and 161 in contact-colour order). When the order is not banded the sweep runs colour
-//! by colour instead ([`Colouring`]: the contacts of one colour share no moving body, so they are
-//! updated at once, as the GPU does), on the problem renumbered so each colour is one contiguous
-//! range. Either is exact Gauss–Seidel in its order: the same bits for any thread count ≥ 2; one
+//! settled 10,000-disk pile against 139 sequentially and 161 in contact-colour order). When the
+//! order is not banded the sweep runs colour by colour instead ([`Colouring`]: the contacts of
+//! one colour share no moving body, so they are updated at once, as the GPU does), on the problem
+//! renumbered so each colour is one contiguous range. Either is exact Gauss–Seidel in its order: the same bits for any thread count ≥ 2; one
 //! thread keeps the sequential reference sweep.
 //!
 //! With rolling resistance each contact's rolling unknown is updated right after its (n, t)
@@ -36,7 +36,8 @@ use rand::{rngs::SmallRng, seq::SliceRandom, SeedableRng};
 /// Contacts per task in a threaded colour.
 const MIN_TASK: usize = 256;
 
-/// Solves from `r` by NLGS (colour by colour on threads for a large matrix-free problem).
+/// Solves from `r` by NLGS (by blocks, else by colours, on threads for a large matrix-free
+/// problem), mixing its sweeps when `opts.anderson` asks for it.
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveReport {
     match &p.w {
         Delassus::MatrixFree(op) if opts.ordering == Ordering::Forward && parallel(p.n_contacts()) => {
@@ -97,8 +98,8 @@ fn solve_coloured(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, r: 
     report
 }
 
-/// Sweeps until the monitor stops: sequentially in `opts.ordering`, or colour range by colour
-/// range on threads when `colours` is given (the problem numbered by colour).
+/// Sweeps until the monitor stops: sequentially in `opts.ordering`, or on threads as `threaded`
+/// says (by blocks, or by colour ranges of the problem numbered by colour).
 fn solve_on(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, threaded: Option<Sweep>) -> SolveReport {
     let mut monitor = Monitor::new(p, opts, SolverKind::Nlgs, &r);
     let nc = p.n_contacts();
