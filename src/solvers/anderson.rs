@@ -3,7 +3,7 @@
 //! outputs whose residuals `G(r) − r` combine to the smallest norm, landed on the cones. Once
 //! the contact statuses settle the map is affine and the mixing acts as GMRES on it.
 //!
-//! The mixer works after any sweep NLGS runs, sequential or colour by colour on threads. On the
+//! The mixer works after any sweep NLGS runs, sequential or threaded (by blocks or colours). On the
 //! matrix-free operator the body velocities `M⁻¹ Bᵀ r` are linear in `r`, so the same combination
 //! of the outputs' velocities is the mixed iterate's: no product is needed to go on sweeping. They
 //! are rebuilt from the impulses every [`REBUILD_EVERY`] mixings, so round-off cannot build up.
@@ -148,9 +148,9 @@ impl Anderson {
         let mut d_impulse = std::mem::take(&mut self.d_impulse[slot]);
         let (residual, older, slots) = (&self.residual, &self.d_residual, &self.slots);
         let sums = {
-            let last_impulse = ChunksMut(&mut self.last_impulse);
-            let last_residual = ChunksMut(&mut self.last_residual);
-            let d_impulse = ChunksMut(&mut d_impulse);
+            let last_impulse = ChunksMut::new(&mut self.last_impulse);
+            let last_residual = ChunksMut::new(&mut self.last_residual);
+            let d_impulse = ChunksMut::new(&mut d_impulse);
             for_chunks(&mut new, slots.len() + 2, |lo, d_res, sums| {
                 let hi = lo + d_res.len();
                 let (last_res, d_imp, last_imp) =
@@ -197,8 +197,8 @@ impl Anderson {
         let (d_impulse, d_velocity) = (&self.d_impulse, &mut self.d_velocity);
         let mut new = std::mem::take(&mut d_velocity[slot]);
         {
-            let last = ChunksMut(&mut self.last_velocity);
-            let new = ChunksMut(&mut new);
+            let last = ChunksMut::new(&mut self.last_velocity);
+            let new = ChunksMut::new(&mut new);
             let older = &*d_velocity;
             for_chunks(v, 0, |lo, v, _| {
                 let hi = lo + v.len();
@@ -251,20 +251,30 @@ fn for_chunks(x: &mut [f64], m: usize, body: impl Fn(usize, &mut [f64], &mut [f6
     total
 }
 
-/// A vector that the tasks of [`for_chunks`] write in disjoint ranges, each its own chunk's.
-struct ChunksMut<'a>(&'a mut [f64]);
+/// A vector that the tasks of [`for_chunks`] write in disjoint ranges, each its own chunk's:
+/// the pointer is taken once from the exclusive borrow it holds for `'a`.
+struct ChunksMut<'a> {
+    ptr: *mut f64,
+    len: usize,
+    _borrow: std::marker::PhantomData<&'a mut [f64]>,
+}
 
 // SAFETY: tasks only reach the vector through `range`, each for its own disjoint chunk.
 unsafe impl Sync for ChunksMut<'_> {}
 
-impl ChunksMut<'_> {
+impl<'a> ChunksMut<'a> {
+    fn new(x: &'a mut [f64]) -> Self {
+        Self { ptr: x.as_mut_ptr(), len: x.len(), _borrow: std::marker::PhantomData }
+    }
+
     /// Elements `lo..hi`, which only the task of that chunk asks for.
     #[allow(clippy::mut_from_ref)]
     fn range(&self, lo: usize, hi: usize) -> &mut [f64] {
-        assert!(lo <= hi && hi <= self.0.len());
-        // SAFETY: in bounds (checked); `for_chunks` gives every task a disjoint range, so no two
-        // live references overlap.
-        unsafe { std::slice::from_raw_parts_mut(self.0.as_ptr().cast_mut().add(lo), hi - lo) }
+        assert!(lo <= hi && hi <= self.len);
+        // SAFETY: in bounds (checked), from a pointer with write provenance over the whole
+        // borrowed vector; `for_chunks` gives every task a disjoint range, so no two live
+        // references overlap.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr.add(lo), hi - lo) }
     }
 }
 
