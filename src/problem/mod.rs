@@ -52,6 +52,9 @@ pub enum ProblemError {
     /// A friction coefficient is negative or not finite.
     #[error("mu[{0}] = {1} is not a friction coefficient (must be finite and >= 0)")]
     BadMu(usize, f64),
+    /// Gap rates that do not match the contacts.
+    #[error("gap rates: {0}")]
+    GapRates(String),
     /// The operator is not a valid `W` (see [`Delassus::validate`]).
     #[error("W: {0}")]
     Operator(String),
@@ -69,6 +72,11 @@ pub struct ContactProblem {
     /// The rolling-resistance coefficient η of each contact (`|r_r| ≤ η r_n`); empty when the
     /// operator has no rolling rows.
     pub rolling: Vec<f64>,
+    /// Per contact, the part of `q_n` that is an open contact's gap closing rate `g̃/h ≥ 0` (a
+    /// simulation step's gap term; empty for a problem read from a file). It is the velocity of
+    /// nothing, so the error measures leave it out of their scale: a wide alert must not loosen
+    /// `tol`.
+    pub gap_rate: Vec<f64>,
 }
 
 impl ContactProblem {
@@ -110,7 +118,21 @@ impl ContactProblem {
             return Err(ProblemError::BadMu(i, mu[i]));
         }
         w.validate().map_err(ProblemError::Operator)?;
-        Ok(Self { w, q, mu, rolling })
+        Ok(Self { w, q, mu, rolling, gap_rate: Vec::new() })
+    }
+
+    /// The problem with each contact's gap term `g̃/h` (one per contact, finite and ≥ 0) named,
+    /// so that the error measures leave it out of their scale ([`Self::gap_rate`]).
+    pub fn with_gap_rates(mut self, gap_rate: Vec<f64>) -> Result<Self, ProblemError> {
+        let nc = self.n_contacts();
+        if gap_rate.len() != nc {
+            return Err(ProblemError::GapRates(format!("{} gap rates for {nc} contacts", gap_rate.len())));
+        }
+        if let Some(a) = gap_rate.iter().position(|g| !(g.is_finite() && *g >= 0.0)) {
+            return Err(ProblemError::GapRates(format!("contact {a}: {} must be finite and >= 0", gap_rate[a])));
+        }
+        self.gap_rate = gap_rate;
+        Ok(self)
     }
 
     /// Number of contacts.

@@ -7,7 +7,7 @@
 use super::monitor::Monitor;
 use super::{SolveReport, SolverKind, SolverOptions};
 use crate::problem::cone::project_box;
-use crate::problem::residual::natural_map_error;
+use crate::problem::residual::problem_error;
 use crate::problem::{dot, norm, ContactProblem};
 
 fn project(r: &mut [f64], thresholds: &[f64]) {
@@ -98,7 +98,7 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut gamma: Vec<f64>) -> S
             for i in 0..n {
                 u[i] = w_gamma[i] + p.q[i];
             }
-            natural_map_error(&p.q, &p.mu, gamma, u)
+            problem_error(p, gamma, u)
         };
         let mut err = error_at(&gamma, &w_gamma, &mut u);
         let outside_cone = (0..p.n_contacts()).any(|a| gamma[2 * a + 1].abs() > p.mu[a] * gamma[2 * a]);

@@ -225,7 +225,7 @@ impl<'a> Monitor<'a> {
         match (self.opts.criterion, &self.diag) {
             (StopCriterion::Velocity, Some(d)) => {
                 let p = self.problem;
-                velocity_error_rolling(d, &p.q, &p.mu, &p.rolling, r, u)
+                velocity_error_rolling(d, &p.q, &p.mu, &p.rolling, &p.gap_rate, r, u)
             }
             _ => error,
         }

@@ -22,7 +22,7 @@ use serde::Serialize;
 use super::monitor::Monitor;
 use super::{nlgs, SolveReport, SolverKind, SolverOptions};
 use crate::problem::cone::project_cone;
-use crate::problem::residual::natural_map_error;
+use crate::problem::residual::problem_error;
 use crate::problem::{dot, norm, BlockSparse, ContactProblem, Mat2};
 
 /// How Newton solves its linear systems.
@@ -372,7 +372,7 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveRepo
         // Armijo backtracking on the judged error itself: ½‖Φ‖² weighs a contact's velocity
         // residual by ρ = 1/W_αα, so it can fall while the error rises (measured: a 7,002-contact
         // problem ended at 4.5e-5 with ½‖Φ‖², reached 1e-8 with this merit).
-        let merit = |r: &[f64], u: &[f64]| natural_map_error(&p.q, &p.mu, r, u);
+        let merit = |r: &[f64], u: &[f64]| problem_error(p, r, u);
         let psi = merit(&r, &u);
         let mut alpha = 1.0;
         let accepted = loop {

@@ -173,6 +173,7 @@ fn local_problem(
     let mut mu = vec![0.0; nc];
     let mut rolling = if op.has_rolling() { vec![0.0; nc] } else { Vec::new() };
     let mut shift = if effects.cohesion { vec![0.0; unknowns] } else { Vec::new() };
+    let mut gap_rate = vec![0.0; nc];
     for (a, c) in contacts.iter().enumerate() {
         let (other_material, wall_velocity, wall_spin) = match c.other {
             Antagonist::Body(j) => (world.bodies.material[j] as usize, DVec2::ZERO, 0.0),
@@ -203,7 +204,8 @@ fn local_problem(
         if effects.restitution && law.restitution > 0.0 && approach < 0.0 && c.gap + h * approach <= 0.0 {
             q[2 * a] += law.restitution * approach;
         } else if predicted_gap > 0.0 {
-            q[2 * a] += predicted_gap / h;
+            gap_rate[a] = predicted_gap / h;
+            q[2 * a] += gap_rate[a];
         }
         if effects.cohesion {
             shift[2 * a] = law.cohesion;
@@ -218,7 +220,9 @@ fn local_problem(
             r0[k] += shift[k];
         }
     }
-    let problem = ContactProblem::with_rolling(Delassus::MatrixFree(op), q, mu, rolling).map_err(|e| e.to_string())?;
+    let problem = ContactProblem::with_rolling(Delassus::MatrixFree(op), q, mu, rolling)
+        .and_then(|p| p.with_gap_rates(gap_rate))
+        .map_err(|e| e.to_string())?;
     Ok((problem, shift))
 }
 
