@@ -14,7 +14,7 @@ use super::operator::{GpuOperator, GpuProblem};
 use super::pool::{BindGroup, GpuBuffer};
 use super::reduce::{partials_len, Dot};
 use crate::problem::cone::project_cone;
-use crate::problem::residual::error_of;
+use crate::problem::residual::{error_of, gap_term};
 use crate::problem::ContactProblem;
 use crate::solvers::stopping::{StallWatch, StopReason};
 use crate::solvers::{HistoryPoint, SolveReport, SolverKind, SolverOptions};
@@ -182,8 +182,7 @@ impl Checker {
         ];
         // The core's scale leaves each open contact's gap term s out of q and u; |u − s| is not
         // reduced here, so |u| − |s| (at most |u − s|) stands in: the estimate can only grow.
-        let gap = |k: usize| if k.is_multiple_of(2) { p.gap_rate.get(k / 2).copied().unwrap_or(0.0) } else { 0.0 };
-        let q_norm = (0..p.q.len()).map(|k| (p.q[k] - gap(k)).powi(2)).sum::<f64>().sqrt();
+        let q_norm = (0..p.q.len()).map(|k| (p.q[k] - gap_term(&p.gap_rate, k)).powi(2)).sum::<f64>().sqrt();
         let gap_norm = p.gap_rate.iter().map(|g| g * g).sum::<f64>().sqrt();
         let _buffers = vec![u, f, partials];
         Self { operator, kernels, residual, dots, scalars, q_norm, gap_norm, groups: groups(nc), _buffers }

@@ -118,9 +118,16 @@ pub fn velocity_error_rolling(
 /// The largest entry of `q` with each contact's gap term (`gap_rate`, empty when none) taken off
 /// its normal entry: the largest velocity the step's free motion gives any contact.
 pub fn free_velocity_bound(q: &[f64], gap_rate: &[f64]) -> f64 {
-    let pairs = 2 * gap_rate.len().min(q.len() / 2);
-    let entry = |k: usize| if k < pairs && k.is_multiple_of(2) { (q[k] - gap_rate[k / 2]).abs() } else { q[k].abs() };
-    (0..q.len()).map(entry).fold(0.0, f64::max)
+    (0..q.len()).map(|k| (q[k] - gap_term(gap_rate, k)).abs()).fold(0.0, f64::max)
+}
+
+/// The gap term in entry `k` of `q` (interleaved pairs, then rolling rows): contact `k/2`'s
+/// `g̃/h` for a normal entry, 0 for any other or when `gap_rate` is empty.
+pub fn gap_term(gap_rate: &[f64], k: usize) -> f64 {
+    match k.is_multiple_of(2) {
+        true => gap_rate.get(k / 2).copied().unwrap_or(0.0),
+        false => 0.0,
+    }
 }
 
 #[cfg(test)]
