@@ -94,6 +94,11 @@ fn velocity_criterion_bounds_every_contact() {
     assert!(natural.converged && velocity.converged, "{} / {}", natural.stop_reason, velocity.stop_reason);
     let worst = |r: &[f64], u: &[f64]| velocity_error(&diag, &p.q, &p.mu, r, u);
     assert!(worst(&velocity.r, &velocity.u) <= 1e-6, "velocity criterion met: {:e}", worst(&velocity.r, &velocity.u));
+    // Each report names the measure its test judged, of what it returned.
+    assert_eq!(velocity.judged_error, worst(&velocity.r, &velocity.u));
+    assert_eq!(natural.judged_error, natural.error);
+    // Stopped by the natural map, the column is met there but not in velocity: the two differ.
+    assert!(worst(&natural.r, &natural.u) > 1e-6, "{:e}", worst(&natural.r, &natural.u));
     assert!(velocity.iterations > natural.iterations, "{} vs {}", velocity.iterations, natural.iterations);
     // Checked by hand: the largest violation in m/s, per contact.
     let u = p.velocity(&velocity.r);

@@ -137,6 +137,11 @@ fn every_solver_criterion_and_device_is_refused_up_front_or_solves() {
                         let r = backend.solve(&p, kind, &opts, None).unwrap();
                         assert!(r.error.is_finite(), "{kind}/{criterion:?} on {}", backend.name());
                         assert_eq!(r.converged, r.stop == StopReason::Converged, "{kind}: {}", r.stop_reason);
+                        // The reported measure is the one that decided, whichever the criterion.
+                        if matches!(criterion, StopCriterion::Natural | StopCriterion::Velocity) {
+                            let judged = r.judged_error;
+                            assert_eq!(r.converged, judged <= opts.tol, "{kind}/{criterion:?}: {judged:e}");
+                        }
                     }
                     (Err(e), None) => panic!("{kind}/{criterion:?}: refused for no stated reason: {e}"),
                 }

@@ -344,6 +344,7 @@ fn solve_mixed(
         converged: cpu.converged,
         iterations: gpu.iterations + cpu.iterations,
         error: cpu.error,
+        judged_error: cpu.judged_error,
         seconds: gpu.seconds + cpu_seconds,
         w_products: gpu.w_products + cpu.w_products,
         history,

@@ -451,7 +451,7 @@ fn solve_command(a: SolveArgs) -> Result<()> {
             report.solver,
             a.tol,
             report.stop_reason,
-            report.error
+            report.judged_error
         );
     }
     Ok(())

@@ -128,6 +128,7 @@ pub fn iterate(
         converged,
         iterations,
         error,
+        judged_error: error,
         seconds: start.elapsed().as_secs_f64(),
         w_products: products_per_iteration * iterations + 1,
         history,

@@ -24,8 +24,11 @@ pub struct SolveOutput<'a> {
     pub converged: bool,
     /// Iterations done.
     pub iterations: usize,
-    /// The f64 error of the answer.
+    /// The f64 natural-map error of the answer.
     pub error: f64,
+    /// The f64 error the stopping test judged (the velocity measure under `criterion =
+    /// velocity`, else `error`).
+    pub judged_error: f64,
     /// Solve time (s).
     pub seconds: f64,
     /// Operator products.
@@ -56,6 +59,7 @@ impl<'a> SolveOutput<'a> {
             converged: rep.converged,
             iterations: rep.iterations,
             error: rep.error,
+            judged_error: rep.judged_error,
             seconds: rep.seconds,
             w_products: rep.w_products,
             stop_reason: &rep.stop_reason,
@@ -67,16 +71,21 @@ impl<'a> SolveOutput<'a> {
     }
 }
 
-/// The one-line summary printed after a solve.
+/// The one-line summary printed after a solve: the error the stopping test judged, and the
+/// natural-map error beside it when that is another measure.
 pub fn summary_line(rep: &SolveReport, device: &str, tol: f64) -> String {
+    let natural = match rep.judged_error == rep.error {
+        true => String::new(),
+        false => format!(" (natural-map error {:.3e})", rep.error),
+    };
     format!(
-        "{} on {}: {} contacts, {} after {} iterations, error {:.3e} (tol {:.1e}), {:.4} s, {} W-products",
+        "{} on {}: {} contacts, {} after {} iterations, error {:.3e} (tol {:.1e}){natural}, {:.4} s, {} W-products",
         rep.solver,
         device,
         rep.r.len() / 2,
         if rep.converged { "converged" } else { "NOT CONVERGED" },
         rep.iterations,
-        rep.error,
+        rep.judged_error,
         tol,
         rep.seconds,
         rep.w_products

@@ -311,7 +311,8 @@ pub struct HistoryPoint {
     pub error: f64,
 }
 
-/// What every solve returns. `error` is always the f64 natural-map error of the returned `r`.
+/// What every solve returns. `error` is always the f64 natural-map error of the returned `r`;
+/// `judged_error` is the measure the stopping test compared with `tol`.
 #[derive(Clone, Debug, Serialize)]
 pub struct SolveReport {
     /// The solver that ran.
@@ -322,6 +323,10 @@ pub struct SolveReport {
     pub iterations: usize,
     /// The f64 natural-map error of the returned `r`.
     pub error: f64,
+    /// The f64 measure of the returned `r` that the stopping test judged against `tol`: the
+    /// velocity measure under `criterion = velocity`, else `error`. Heavy grains put the two
+    /// far apart (the natural map's scale holds impulses of ~1e3 N s): 1e-8 against 1e-3.
+    pub judged_error: f64,
     /// Solve time (s).
     pub seconds: f64,
     /// Operator products done.

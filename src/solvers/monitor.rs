@@ -282,6 +282,7 @@ impl<'a> Monitor<'a> {
             converged,
             iterations: self.iteration,
             error,
+            judged_error: if lmgc { error } else { judged },
             seconds,
             w_products: self.w_products,
             history: self.history,

@@ -408,7 +408,7 @@ fn apply(
     if let (Some(local), Some((solved, seconds))) = (&problem, solved) {
         report.solve_seconds = seconds;
         report.iterations = solved.iterations;
-        report.error = solved.error;
+        report.error = solved.judged_error;
         report.converged = solved.converged;
         report.stop = solved.stop;
         (report.gpu_dispatches, report.gpu_bytes) = (solved.gpu_dispatches, solved.gpu_bytes);

@@ -108,7 +108,8 @@ pub struct StepReport {
     pub warm_started: usize,
     /// Solver iterations.
     pub iterations: usize,
-    /// The solve's f64 error.
+    /// The solve's f64 error in the measure its stopping test judged (the velocity measure
+    /// under `criterion = velocity`, else the natural map's), to be read against `tol`.
     pub error: f64,
     /// Whether the solve met its tolerance.
     pub converged: bool,
