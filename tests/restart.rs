@@ -195,3 +195,47 @@ fn improper_colours_in_a_checkpoint_are_refused() {
     let e = target.restore(&c).unwrap_err().to_string();
     assert!(e.contains("is not below the number of contacts"), "{e}");
 }
+
+#[test]
+fn saved_grains_start_a_scene_where_the_run_left_them() {
+    let dir = temp("grains");
+    let saved = dir.join("settled.csv");
+    let out = dir.join("run");
+    let said = run(&[
+        "run",
+        "scenes/pile.toml",
+        "--steps",
+        "10",
+        "--device",
+        "cpu",
+        "--out",
+        out.to_str().unwrap(),
+        "--save-grains",
+        saved.to_str().unwrap(),
+    ]);
+    assert!(said.contains("grains of step 10 in"), "{said}");
+    // The same scene taking its grains from the file instead of generating them.
+    let text = std::fs::read_to_string("scenes/pile.toml").unwrap();
+    let generated = text.find("[[generate]]").unwrap();
+    let scene = dir.join("from_file.toml");
+    std::fs::write(&scene, format!("{}[[grains]]\nfile = \"settled.csv\"\n", &text[..generated])).unwrap();
+    let loaded = moreau::scene::load(&scene).unwrap_or_else(|e| panic!("{e}"));
+    let mut sim = Simulation::from_scene(Path::new("scenes/pile.toml")).unwrap();
+    for _ in 0..10 {
+        sim.step().unwrap();
+    }
+    let (a, b) = (&loaded.world.bodies, &sim.world.bodies);
+    assert_eq!(a.len(), b.len());
+    assert!(a.position == b.position && a.velocity == b.velocity && a.spin == b.spin, "not the run's last state");
+    assert_eq!(a.mass, b.mass);
+
+    // A world a grains file cannot hold is refused before the run, naming the body.
+    let bad = moreau()
+        .args(["run", "scenes/polygon_pile.toml", "--steps", "1", "--quiet", "--save-grains"])
+        .arg(dir.join("no.csv"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success() && err.contains("is a polygon; a grains file holds disks"), "{err}");
+    assert!(!dir.join("no.csv").exists());
+}

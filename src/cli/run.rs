@@ -63,6 +63,10 @@ pub struct RunArgs {
     /// Exit non-zero (after writing the outputs) when any step misses its tolerance.
     #[arg(long)]
     strict: bool,
+    /// Write the last step's grains as a grains CSV file (`x,y,r,vx,vy,spin,tag`), which a
+    /// scene's `[[grains]] file` starts from: a deposit settled once, studied many times.
+    #[arg(long)]
+    save_grains: Option<PathBuf>,
 }
 
 /// Non-converged steps reported one by one; the rest are counted in the summary and steps.csv.
@@ -94,6 +98,9 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         None => bail!("the checkpoint is at step {start}, the scene's last: give --steps to go further"),
     };
     let last = start + steps;
+    if let (Some(path), Some(why)) = (&a.save_grains, crate::io::grains::unsavable(&scene.world)) {
+        bail!("--save-grains {}: {why}", path.display());
+    }
     apply_overrides(&mut scene, &a)?;
     set_threads(a.threads)?;
     let (vtk_every, picture_step) = output_steps(&a, &scene, start, last)?;
@@ -188,6 +195,10 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         per_step.write(&sim, &report, &mut output, &mut summary, &bar)?;
     }
     bar.finish_and_clear();
+    if let Some(path) = &a.save_grains {
+        crate::io::grains::write_grains(&sim.world, path).map_err(|e| anyhow::anyhow!("--save-grains: {e}"))?;
+        eprintln!("grains of step {} in {}", sim.steps_done(), path.display());
+    }
     finish_run(summary, output, &out_dir, diameter, a.strict)
 }
 

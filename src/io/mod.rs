@@ -1,7 +1,8 @@
 //! Files in and out: Siconos fc2d problems, JSON solve reports, simulation outputs (steps.csv,
-//! summary.json, VTK time series, PNG pictures).
+//! summary.json, VTK time series, PNG pictures), grains files of a run's last state.
 
 pub mod checkpoint;
+pub mod grains;
 #[cfg(feature = "plots")]
 pub mod picture;
 #[cfg(feature = "plots")]

@@ -1,0 +1,80 @@
+//! A world's grains written as a grains CSV file (`x,y,r,vx,vy,spin,tag`, the format
+//! `[[grains]]` reads, `scene/grains_csv.rs`): a packing prepared by one run (a deposit let to
+//! settle) becomes the start of others, as LMGC90 hands a deposited sample to its next study.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use crate::world::{BodyShape, World};
+
+/// Why `world` cannot be written as one grains file: a grains file holds moving disks of one
+/// material, so a polygon, a fixed body or a second material would not come back as they were.
+pub fn unsavable(world: &World) -> Option<String> {
+    let b = &world.bodies;
+    if b.is_empty() {
+        return Some("the world has no bodies".into());
+    }
+    (0..b.len()).find_map(|k| match b.shape[k] {
+        BodyShape::Polygon(_) => Some(format!("body {k} is a polygon; a grains file holds disks")),
+        _ if b.inv_mass[k] == 0.0 => Some(format!("body {k} is fixed; a grains file holds moving disks")),
+        _ if b.material[k] != b.material[0] => Some(format!(
+            "bodies 0 and {k} are of different materials; a grains file takes one (its [[grains]] material)"
+        )),
+        _ => None,
+    })
+}
+
+/// The grains file's text: a header, then one row per body with every number written so that
+/// it reads back to the same bits.
+pub fn grains_text(world: &World) -> Result<String, String> {
+    if let Some(why) = unsavable(world) {
+        return Err(why);
+    }
+    let b = &world.bodies;
+    let mut text = String::from("x,y,r,vx,vy,spin,tag\n");
+    for k in 0..b.len() {
+        let (p, v) = (b.position[k], b.velocity[k]);
+        let _ = writeln!(text, "{},{},{},{},{},{},{}", p.x, p.y, b.radius_of(k), v.x, v.y, b.spin_of(k), b.tag[k]);
+    }
+    Ok(text)
+}
+
+/// Writes `world`'s grains at `path` (see [`grains_text`]).
+pub fn write_grains(world: &World, path: &Path) -> Result<(), String> {
+    let text = grains_text(world)?;
+    std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec2;
+
+    use super::*;
+    use crate::scene::grains_csv::parse_grains;
+    use crate::world::{BodySpec, Effects, Interaction, Materials};
+
+    #[test]
+    fn written_grains_read_back_to_the_same_bits() {
+        let materials = Materials::new(vec!["m".into()], vec![2500.0], Interaction::default());
+        let mut world = World::new(Effects { rotation: true, ..Effects::default() }, materials);
+        let m = 0;
+        for k in 0..5 {
+            let x = 0.1 + k as f64 / 3.0;
+            let mut spec = BodySpec::disk(DVec2::new(x, x.sin() / 7.0), 0.01 + 1e-3 * x, m);
+            (spec.velocity, spec.spin, spec.tag) = (DVec2::new(x / 9.0, -x), 1.0 / (k as f64 + 3.0), k);
+            world.bodies.add(&spec, 2500.0).unwrap();
+        }
+        let rows = parse_grains(&grains_text(&world).unwrap(), 10).unwrap();
+        let b = &world.bodies;
+        for (k, row) in rows.iter().enumerate() {
+            assert_eq!((row.center, row.radius), (b.position[k], b.radius_of(k)));
+            assert_eq!((row.velocity, row.spin, row.tag), (b.velocity[k], b.spin_of(k), b.tag[k]));
+        }
+        assert_eq!(rows.len(), 5);
+
+        let mut fixed = BodySpec::disk(DVec2::ZERO, 0.01, m);
+        fixed.fixed = true;
+        world.bodies.add(&fixed, 2500.0).unwrap();
+        assert_eq!(grains_text(&world).unwrap_err(), "body 5 is fixed; a grains file holds moving disks");
+    }
+}
