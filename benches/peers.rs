@@ -1,12 +1,15 @@
 //! moreau and rapier2d side by side on the same pile (README "What accuracy costs in time"):
-//! both start from the same deposited disks, settle for a few steps, then step on while we time
-//! each step and measure, after it and outside the timer, the overlaps of the grains (moreau's
-//! exact detection on each engine's positions, relative to the mean diameter).
+//! moreau settles the deposited disks once, with the scene's own solver; every configuration of
+//! both engines starts from that state (positions, velocities, and moreau's warm start), takes
+//! a few untimed steps so that each engine's own warm start is in place, then steps on while we
+//! time each step and measure, after it and outside the timer, the overlaps of the grains
+//! (moreau's exact detection on each engine's positions, relative to the mean diameter).
 //!
-//! `cargo bench --bench peers` (scene `scenes/pile_10k.toml`; MOREAU_PEERS_SCENE, _WARMUP,
-//! _STEPS and _THREADS change it). Writes target/peers/peers.csv and peers.svg/.png (largest
-//! overlap against milliseconds per step, one curve per engine). rapier2d is built without its
-//! `parallel` feature, so it runs on one thread; moreau's rows say their thread count.
+//! `cargo bench --bench peers` (scene `scenes/pile_10k.toml`; MOREAU_PEERS_SCENE, _WARMUP (the
+//! settling steps), _LEAD (untimed steps of each configuration), _STEPS and _THREADS change it).
+//! Writes target/peers/peers.csv and peers.svg/.png (largest overlap against milliseconds per
+//! step, one curve per engine). rapier2d is built without its `parallel` feature, so it runs on
+//! one thread; moreau's rows say their thread count.
 
 #[path = "peers/scene.rs"]
 mod scene;
@@ -16,7 +19,7 @@ use std::time::Instant;
 
 use moreau::io::plots::{write_chart, Chart, Series};
 use moreau::solvers::SolverOptions;
-use moreau::stepping::Simulation;
+use moreau::stepping::{Checkpoint, Simulation};
 use scene::{kinetic_energy, penetration, rapier_pile};
 
 #[derive(serde::Serialize)]
@@ -39,16 +42,16 @@ fn env(name: &str, default: usize) -> usize {
     std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)
 }
 
-/// Steps `step` for `warmup` steps, then times `steps` more; after each timed step the overlaps
-/// at `state()` are measured. Returns (ms per step, mean and max overlap, contacts, KE).
+/// Steps `step` for `lead` untimed steps, then times `steps` more; after each timed step the
+/// overlaps at `state()` are measured. Returns (ms per step, mean and max overlap, contacts, KE).
 fn measure(
     world: &moreau::world::World,
-    warmup: usize,
+    lead: usize,
     steps: usize,
     mut step: impl FnMut() -> f64,
     state: impl Fn() -> (Vec<glam::DVec2>, Vec<glam::DVec2>),
 ) -> (f64, f64, f64, usize, f64) {
-    for _ in 0..warmup {
+    for _ in 0..lead {
         step();
     }
     let (mut seconds, mut mean, mut max, mut contacts) = (0.0, 0.0f64, 0.0f64, 0);
@@ -65,20 +68,26 @@ fn measure(
 fn main() {
     let path = PathBuf::from(std::env::var("MOREAU_PEERS_SCENE").unwrap_or_else(|_| "scenes/pile_10k.toml".into()));
     let (warmup, steps) = (env("MOREAU_PEERS_WARMUP", 20), env("MOREAU_PEERS_STEPS", 20));
+    let lead = env("MOREAU_PEERS_LEAD", 5);
     let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
     let threads = env("MOREAU_PEERS_THREADS", cores);
     let load = || moreau::scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
     let first = load();
     let h = first.settings.h;
-    eprintln!("{}: {} disks, h = {h:e}; {warmup} steps to settle, {steps} timed", first.name, first.world.bodies.len());
+    eprintln!(
+        "{}: {} disks, h = {h:e}; {warmup} steps to settle, then per configuration {lead} untimed and {steps} timed",
+        first.name,
+        first.world.bodies.len()
+    );
+    let (settled, checkpoint) = settle(load(), warmup, threads);
     let mut rows = Vec::new();
 
     for iterations in [4usize, 8, 16] {
-        let mut pile = rapier_pile(&first.world, h, iterations).unwrap_or_else(|e| panic!("{e}"));
+        let mut pile = rapier_pile(&settled, h, iterations).unwrap_or_else(|e| panic!("{e}"));
         let pile = std::cell::RefCell::new(&mut pile);
         let (ms, mean, max, contacts, ke) = measure(
             &first.world,
-            warmup,
+            lead,
             steps,
             || {
                 let t = Instant::now();
@@ -128,11 +137,13 @@ fn main() {
             };
             let world = s.world.clone();
             let ((ms, mean, max, contacts, ke), unconverged) = pool.install(|| {
-                let sim = std::cell::RefCell::new(Simulation::new(s.world, s.settings).expect("a valid scene"));
+                let mut sim = Simulation::new(s.world, s.settings).expect("a valid scene");
+                sim.restore(&checkpoint).expect("the settled state");
+                let sim = std::cell::RefCell::new(sim);
                 let unconverged = std::cell::Cell::new(0usize);
                 let measured = measure(
                     &world,
-                    warmup,
+                    lead,
                     steps,
                     || {
                         let r = sim.borrow_mut().step().unwrap_or_else(|e| panic!("{e}"));
@@ -164,6 +175,26 @@ fn main() {
         }
     }
     report(&rows, &first.name, first.world.bodies.len());
+}
+
+/// The scene stepped `warmup` times with its own settings on `threads` threads: the settled
+/// world and the checkpoint every moreau configuration restarts from.
+fn settle(scene: moreau::scene::Scene, warmup: usize, threads: usize) -> (moreau::world::World, Checkpoint) {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a thread pool");
+    pool.install(|| {
+        let t = Instant::now();
+        let mut sim = Simulation::new(scene.world, scene.settings).expect("a valid scene");
+        let mut missed = 0;
+        for _ in 0..warmup {
+            missed += usize::from(!sim.step().unwrap_or_else(|e| panic!("{e}")).converged);
+        }
+        let ke = sim.world.bodies.kinetic_energy();
+        eprintln!(
+            "settled in {:.1} s ({missed} of {warmup} steps missed tol), kinetic energy {ke:.3e} J",
+            t.elapsed().as_secs_f64()
+        );
+        (sim.world.clone(), sim.checkpoint())
+    })
 }
 
 fn report(rows: &[Row], scene: &str, bodies: usize) {

@@ -33,7 +33,8 @@ pub fn rapier_pile(world: &World, h: f64, iterations: usize) -> Result<RapierPil
         let v = b.velocity[k];
         let body = RigidBodyBuilder::dynamic()
             .translation(Vector::new(p.x as f32, p.y as f32))
-            .linvel(Vector::new(v.x as f32, v.y as f32));
+            .linvel(Vector::new(v.x as f32, v.y as f32))
+            .angvel(b.spin_of(k) as f32);
         let collider =
             ColliderBuilder::ball(radius as f32).density(density as f32).friction(law.friction as f32).restitution(0.0);
         handles.push(physics.insert(body, collider).0);
