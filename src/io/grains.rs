@@ -1,14 +1,15 @@
-//! A world's grains written as a grains CSV file (`x,y,r,vx,vy,spin,tag`, the format
+//! A world's grains written as a grains CSV file (`x,y,r,vx,vy,spin,tag,material`, the format
 //! `[[grains]]` reads, `scene/grains_csv.rs`): a packing prepared by one run (a deposit let to
 //! settle) becomes the start of others, as LMGC90 hands a deposited sample to its next study.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
+use crate::scene::grains_csv::COLUMNS;
 use crate::world::{BodyShape, World};
 
-/// Why `world` cannot be written as one grains file: a grains file holds moving disks of one
-/// material, so a polygon, a fixed body or a second material would not come back as they were.
+/// Why `world` cannot be written as a grains file: it holds moving disks, so a polygon or a
+/// fixed body would not come back as it was.
 pub fn unsavable(world: &World) -> Option<String> {
     let b = &world.bodies;
     if b.is_empty() {
@@ -17,9 +18,6 @@ pub fn unsavable(world: &World) -> Option<String> {
     (0..b.len()).find_map(|k| match b.shape[k] {
         BodyShape::Polygon(_) => Some(format!("body {k} is a polygon; a grains file holds disks")),
         _ if b.inv_mass[k] == 0.0 => Some(format!("body {k} is fixed; a grains file holds moving disks")),
-        _ if b.material[k] != b.material[0] => Some(format!(
-            "bodies 0 and {k} are of different materials; a grains file takes one (its [[grains]] material)"
-        )),
         _ => None,
     })
 }
@@ -31,10 +29,12 @@ pub fn grains_text(world: &World) -> Result<String, String> {
         return Err(why);
     }
     let b = &world.bodies;
-    let mut text = String::from("x,y,r,vx,vy,spin,tag\n");
+    let mut text = COLUMNS.join(",") + "\n";
     for k in 0..b.len() {
         let (p, v) = (b.position[k], b.velocity[k]);
-        let _ = writeln!(text, "{},{},{},{},{},{},{}", p.x, p.y, b.radius_of(k), v.x, v.y, b.spin_of(k), b.tag[k]);
+        let material = &world.materials.names[b.material[k] as usize];
+        let (r, spin, tag) = (b.radius_of(k), b.spin_of(k), b.tag[k]);
+        let _ = writeln!(text, "{},{},{},{},{},{spin},{tag},{material}", p.x, p.y, r, v.x, v.y);
     }
     Ok(text)
 }
@@ -55,20 +55,23 @@ mod tests {
 
     #[test]
     fn written_grains_read_back_to_the_same_bits() {
-        let materials = Materials::new(vec!["m".into()], vec![2500.0], Interaction::default());
+        let materials = Materials::new(vec!["m".into(), "n".into()], vec![2500.0, 900.0], Interaction::default());
         let mut world = World::new(Effects { rotation: true, ..Effects::default() }, materials);
         let m = 0;
         for k in 0..5 {
             let x = 0.1 + k as f64 / 3.0;
             let mut spec = BodySpec::disk(DVec2::new(x, x.sin() / 7.0), 0.01 + 1e-3 * x, m);
             (spec.velocity, spec.spin, spec.tag) = (DVec2::new(x / 9.0, -x), 1.0 / (k as f64 + 3.0), k);
-            world.bodies.add(&spec, 2500.0).unwrap();
+            spec.material = (k % 2) as usize;
+            world.bodies.add(&spec, [2500.0, 900.0][k as usize % 2]).unwrap();
         }
-        let rows = parse_grains(&grains_text(&world).unwrap(), 10).unwrap();
+        let names = &world.materials.names;
+        let rows = parse_grains(&grains_text(&world).unwrap(), 10, names).unwrap();
         let b = &world.bodies;
         for (k, row) in rows.iter().enumerate() {
             assert_eq!((row.center, row.radius), (b.position[k], b.radius_of(k)));
             assert_eq!((row.velocity, row.spin, row.tag), (b.velocity[k], b.spin_of(k), b.tag[k]));
+            assert_eq!(row.material, Some(b.material[k] as usize));
         }
         assert_eq!(rows.len(), 5);
 

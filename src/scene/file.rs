@@ -742,10 +742,12 @@ impl Builder<'_> {
             let field = |f: &str| format!("grains[{k}].{f}");
             let material = self.material_index(&spec.material, g.span(), field("material"))?;
             let path = self.cx.origin.parent().unwrap_or(Path::new(".")).join(&spec.file);
-            let rows =
-                grains_csv::read_grains(&path, MAX_GENERATED).or_else(|m| self.cx.err(g.span(), field("file"), m))?;
-            let density = world.materials.density[material];
+            let rows = grains_csv::read_grains(&path, MAX_GENERATED, &world.materials.names)
+                .or_else(|m| self.cx.err(g.span(), field("file"), m))?;
             for (n, row) in rows.iter().enumerate() {
+                // A file's material column names each grain's; [[grains]] material the rest.
+                let material = row.material.unwrap_or(material);
+                let density = world.materials.density[material];
                 let mut body = BodySpec::disk(row.center, row.radius, material);
                 (body.velocity, body.spin, body.tag) = (row.velocity, row.spin, row.tag);
                 world.bodies.add(&body, density).or_else(|m| {

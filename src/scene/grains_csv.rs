@@ -1,6 +1,6 @@
 //! Grains read from a CSV file, as packings made by other codes are handed over: a header row
-//! naming the columns (`x, y, r` required; `vx, vy, spin, tag` optional; any order), one grain a
-//! row, `#` lines ignored. Errors name the line and the column.
+//! naming the columns (`x, y, r` required; `vx, vy, spin, tag, material` optional, the material by
+//! its scene name; any order), one grain a row, `#` lines ignored. Errors name the line and the column.
 
 use std::path::Path;
 
@@ -19,18 +19,22 @@ pub struct GrainRow {
     pub spin: f64,
     /// Tag (0 when absent).
     pub tag: u32,
+    /// Index of the material the row names among the scene's (None when the column is absent).
+    pub material: Option<usize>,
 }
 
-const COLUMNS: [&str; 7] = ["x", "y", "r", "vx", "vy", "spin", "tag"];
+/// The columns a grains file may have, in the order `io::grains` writes them.
+pub const COLUMNS: [&str; 8] = ["x", "y", "r", "vx", "vy", "spin", "tag", "material"];
+const MATERIAL: usize = 7;
 
-/// Reads at most `max_rows` grains from `path`.
-pub fn read_grains(path: &Path, max_rows: usize) -> Result<Vec<GrainRow>, String> {
+/// Reads at most `max_rows` grains from `path`; `materials` are the scene's material names.
+pub fn read_grains(path: &Path, max_rows: usize, materials: &[String]) -> Result<Vec<GrainRow>, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    parse_grains(&text, max_rows).map_err(|e| format!("{}: {e}", path.display()))
+    parse_grains(&text, max_rows, materials).map_err(|e| format!("{}: {e}", path.display()))
 }
 
 /// Parses the text of a grains file (see the module doc).
-pub fn parse_grains(text: &str, max_rows: usize) -> Result<Vec<GrainRow>, String> {
+pub fn parse_grains(text: &str, max_rows: usize, materials: &[String]) -> Result<Vec<GrainRow>, String> {
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(false)
         .comment(Some(b'#'))
@@ -40,7 +44,7 @@ pub fn parse_grains(text: &str, max_rows: usize) -> Result<Vec<GrainRow>, String
     let mut records = reader.records();
     let header = match records.next() {
         Some(h) => h.map_err(|e| format!("header: {e}"))?,
-        None => return Err("no header row (columns x, y, r and optionally vx, vy, spin, tag)".into()),
+        None => return Err("no header row (columns x, y, r and optionally vx, vy, spin, tag, material)".into()),
     };
     let line_of = |r: &csv::StringRecord| r.position().map(|p| p.line()).unwrap_or(0);
     // Where each known column is.
@@ -89,6 +93,20 @@ pub fn parse_grains(text: &str, max_rows: usize) -> Result<Vec<GrainRow>, String
         if radius <= 0.0 {
             return Err(format!("line {line}, column {} (r): radius {radius} must be > 0", at[2].unwrap() + 1));
         }
+        let material = match at[MATERIAL] {
+            None => None,
+            Some(c) => {
+                let name = &record[c];
+                let found = materials.iter().position(|m| m == name);
+                Some(found.ok_or_else(|| {
+                    format!(
+                        "line {line}, column {} (material): {name:?} is not a material of the scene (known: {})",
+                        c + 1,
+                        materials.join(", ")
+                    )
+                })?)
+            }
+        };
         let tag = value(6)?;
         if tag < 0.0 || tag.fract() != 0.0 || tag > u32::MAX as f64 {
             return Err(format!("line {line}, column {} (tag): {tag} is not a whole number >= 0", at[6].unwrap() + 1));
@@ -99,6 +117,7 @@ pub fn parse_grains(text: &str, max_rows: usize) -> Result<Vec<GrainRow>, String
             velocity: DVec2::new(value(3)?, value(4)?),
             spin: value(5)?,
             tag: tag as u32,
+            material,
         });
     }
     if grains.is_empty() {
@@ -113,7 +132,7 @@ mod tests {
 
     #[test]
     fn columns_in_any_order_with_optional_ones() {
-        let g = parse_grains("# a packing\nr, y, x, vx\n0.5, 2, 1, -3\n0.25,4,3,0\n", 10).unwrap();
+        let g = parse_grains("# a packing\nr, y, x, vx\n0.5, 2, 1, -3\n0.25,4,3,0\n", 10, &[]).unwrap();
         assert_eq!(g.len(), 2);
         assert_eq!(g[0].center, DVec2::new(1.0, 2.0));
         assert_eq!((g[0].radius, g[0].velocity.x, g[0].spin), (0.5, -3.0, 0.0));
@@ -121,19 +140,27 @@ mod tests {
 
     #[test]
     fn errors_name_line_and_column() {
-        let e = parse_grains("x,y,r\n0,0,1\n1,zz,1\n", 10).unwrap_err();
+        let e = parse_grains("x,y,r\n0,0,1\n1,zz,1\n", 10, &[]).unwrap_err();
         assert!(e.contains("line 3, column 2 (y)") && e.contains("\"zz\""), "{e}");
-        let e = parse_grains("x,y,r\n0,0,-1\n", 10).unwrap_err();
+        let e = parse_grains("x,y,r\n0,0,-1\n", 10, &[]).unwrap_err();
         assert!(e.contains("line 2, column 3 (r)"), "{e}");
-        let e = parse_grains("x,y,radius\n", 10).unwrap_err();
+        let e = parse_grains("x,y,radius\n", 10, &[]).unwrap_err();
         assert!(e.contains("line 1, column 3") && e.contains("radius"), "{e}");
-        let e = parse_grains("x,y\n0,0\n", 10).unwrap_err();
+        let e = parse_grains("x,y\n0,0\n", 10, &[]).unwrap_err();
         assert!(e.contains("no column \"r\""), "{e}");
-        let e = parse_grains("x,y,r\n0,0,1,4\n", 10).unwrap_err();
+        let e = parse_grains("x,y,r\n0,0,1,4\n", 10, &[]).unwrap_err();
         assert!(e.contains("line 2: 4 fields"), "{e}");
-        let e = parse_grains("x,y,r\n0,0,1\n1,1,1\n", 1).unwrap_err();
+        let e = parse_grains("x,y,r\n0,0,1\n1,1,1\n", 1, &[]).unwrap_err();
         assert!(e.contains("line 3: more than 1 grains"), "{e}");
-        let e = parse_grains("x,y,r\n0,inf,1\n", 10).unwrap_err();
+        let e = parse_grains("x,y,r\n0,inf,1\n", 10, &[]).unwrap_err();
         assert!(e.contains("line 2, column 2 (y)"), "{e}");
+        let sand = ["sand".to_string(), "steel".to_string()];
+        let g = parse_grains("x,y,r,material\n0,0,1,steel\n1,0,1,sand\n", 10, &sand).unwrap();
+        assert_eq!((g[0].material, g[1].material), (Some(1), Some(0)));
+        let e = parse_grains("x,y,r,material\n0,0,1,steel\n1,0,1,glass\n", 10, &sand).unwrap_err();
+        assert!(
+            e.contains("line 3, column 4 (material): \"glass\" is not a material") && e.contains("sand, steel"),
+            "{e}"
+        );
     }
 }
