@@ -194,6 +194,39 @@ fn gpu_solvers_solve_what_the_cpu_solves() {
     let _ = to_f32_pairs(&[0.0, 0.0]);
 }
 
+/// The velocity test on the GPU is the CPU's: on a column of heavy grains the natural-map error
+/// is met long before the worst contact is; asked for the velocity test, the GPU stops only
+/// when the f64 velocity measure of what it returns is within tol, as the CPU does.
+#[test]
+fn the_gpu_stops_on_the_velocity_test_as_the_cpu_does() {
+    use moreau::problem::generate::heavy_column;
+    use moreau::problem::residual::velocity_error;
+    use moreau::solvers::StopCriterion;
+    let Some(ctx) = common::gpu_context() else { return };
+    let p = heavy_column(30, 100.0, 0.5);
+    let diag = p.w.diag_blocks();
+    let worst = |r: &[f64], u: &[f64]| velocity_error(&diag, &p.q, &p.mu, r, u);
+    for kind in [SolverKind::Nlgs, SolverKind::Pcpg] {
+        let run = |criterion| {
+            let opts = SolverOptions { tol: 1e-4, max_iter: 200_000, criterion, ..SolverOptions::default() };
+            moreau::gpu::solve(&ctx, &p, kind, &opts, None).unwrap()
+        };
+        let (natural, velocity) = (run(StopCriterion::Natural), run(StopCriterion::Velocity));
+        eprintln!(
+            "{kind}: natural test {} its, velocity measure {:.2e}; velocity test {} its, {:.2e}",
+            natural.iterations,
+            worst(&natural.r, &natural.u),
+            velocity.iterations,
+            velocity.judged_error
+        );
+        assert!(velocity.converged, "{kind}: {}", velocity.stop_reason);
+        assert_eq!(velocity.judged_error, worst(&velocity.r, &velocity.u), "{kind}: judged in f64 on what it returns");
+        assert!(velocity.judged_error <= 1e-4);
+        assert!(worst(&natural.r, &natural.u) > 1e-4, "{kind}: the natural test alone should miss it");
+        assert!(velocity.iterations > natural.iterations, "{kind}");
+    }
+}
+
 #[test]
 fn a_solver_the_gpu_lacks_is_a_clear_error() {
     let Some(ctx) = common::gpu_context() else { return };

@@ -92,7 +92,7 @@ pub fn gpu_refusal(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
     if !crate::gpu::supports(kind) {
         return Some(GpuError::Unsupported(kind.name().into()).to_string());
     }
-    if opts.criterion != StopCriterion::Natural {
+    if !matches!(opts.criterion, StopCriterion::Natural | StopCriterion::Velocity) {
         return Some(GpuError::Criterion(format!("{:?}", opts.criterion).to_lowercase()).to_string());
     }
     if kind == SolverKind::Nlgs && opts.omega != 1.0 {
@@ -315,7 +315,7 @@ fn solve_mixed(
     let gpu_opts = SolverOptions { tol: opts.tol.max(F32_FLOOR), anderson: 0, ..opts.clone() };
     let mut gpu = crate::gpu::solve(ctx, problem, kind, &gpu_opts, r0)?;
     gpu.notes.extend(gpu_omits(kind, opts));
-    let finish_on_cpu = !gpu.converged || gpu.error > opts.tol;
+    let finish_on_cpu = !gpu.converged || gpu.judged_error > opts.tol;
     let left = opts.max_iter.saturating_sub(gpu.iterations);
     if !finish_on_cpu || left == 0 || gpu.stop == StopReason::Diverged {
         return Ok(gpu);

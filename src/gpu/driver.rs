@@ -1,7 +1,9 @@
 //! The loop every GPU solver shares: record K iterations per submit, then estimate the error on
 //! the GPU (`natural_map.wgsl` and three deterministic reductions: only three numbers come back);
 //! when the estimate reaches the tolerance, read `r` back and judge it in f64 on the CPU with the
-//! core's measure — that f64 error alone decides convergence. Stop at the tolerance, at
+//! core's measure — that f64 error alone decides convergence. Under `criterion = velocity`,
+//! whose measure the natural-map estimate does not bound, every check reads `r` back and judges
+//! it in f64 (the CPU's [`JudgedMeasure`]). Stop at the tolerance, at
 //! max_iter, or when the error stops improving (the f32 floor, reported). K doubles while the
 //! error is more than 100 × tol away.
 
@@ -16,8 +18,8 @@ use super::reduce::{partials_len, Dot};
 use crate::problem::cone::project_cone;
 use crate::problem::residual::{error_of, gap_term};
 use crate::problem::ContactProblem;
-use crate::solvers::stopping::{StallWatch, StopReason};
-use crate::solvers::{HistoryPoint, SolveReport, SolverKind, SolverOptions};
+use crate::solvers::stopping::{JudgedMeasure, StallWatch, StopReason};
+use crate::solvers::{HistoryPoint, SolveReport, SolverKind, SolverOptions, StopCriterion};
 
 /// The f64 starting impulses, projected on the cone (warm start, else zero).
 pub fn initial_impulses(p: &ContactProblem, r0: Option<&[f64]>) -> Vec<f64> {
@@ -54,7 +56,13 @@ pub fn iterate(
 ) -> Result<SolveReport, GpuError> {
     let nc = p.n_contacts();
     let checker = Checker::new(ctx, p, gp, r_buf);
-    let (mut error, _) = error_of(p, &r);
+    let measure = JudgedMeasure::new(p, opts.criterion);
+    let judge = |r: &[f64]| {
+        let (natural, u) = error_of(p, r);
+        (measure.of(p, r, &u, natural), natural, u)
+    };
+    let every_check_exact = opts.criterion == StopCriterion::Velocity;
+    let (mut error, ..) = judge(&r);
     let mut history = vec![HistoryPoint { iteration: 0, seconds: start.elapsed().as_secs_f64(), w_products: 0, error }];
     let (mut best, mut best_r) = (error, r.clone());
     let mut stall = StallWatch::new(error);
@@ -91,12 +99,12 @@ pub fn iterate(
             break;
         }
         // Near the tolerance the f32 estimate is not trusted either way: judge in f64.
-        let exact = estimate <= 2.0 * opts.tol;
+        let exact = every_check_exact || estimate <= 2.0 * opts.tol;
         if exact {
             r = to_f64(&read_back::<[f32; 2]>(ctx, r_buf, nc).map_err(GpuError::Runtime)?);
             // Judge what would be returned: f32 impulses (and APGD's lagging box) landed on the f64 cone.
             land_on_cone(p, &mut r);
-            error = error_of(p, &r).0;
+            error = judge(&r).0;
         } else {
             error = estimate;
         }
@@ -117,18 +125,18 @@ pub fn iterate(
     // The impulses the GPU holds now, judged in f64; the best f64-judged ones if those were better.
     let mut r = to_f64(&read_back::<[f32; 2]>(ctx, r_buf, nc).map_err(GpuError::Runtime)?);
     land_on_cone(p, &mut r);
-    let (mut error, mut u) = error_of(p, &r);
-    if (error.is_nan() || error > best) && best.is_finite() {
+    let (mut judged, mut error, mut u) = judge(&r);
+    if (judged.is_nan() || judged > best) && best.is_finite() {
         r = best_r;
-        (error, u) = error_of(p, &r);
+        (judged, error, u) = judge(&r);
     }
-    let converged = error <= opts.tol;
+    let converged = judged <= opts.tol;
     Ok(SolveReport {
         solver: kind,
         converged,
         iterations,
         error,
-        judged_error: error,
+        judged_error: judged,
         seconds: start.elapsed().as_secs_f64(),
         w_products: products_per_iteration * iterations + 1,
         history,

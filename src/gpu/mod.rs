@@ -32,7 +32,7 @@ pub fn solve(
     opts: &SolverOptions,
     r0: Option<&[f64]>,
 ) -> Result<SolveReport, GpuError> {
-    if opts.criterion != crate::solvers::StopCriterion::Natural {
+    if !matches!(opts.criterion, crate::solvers::StopCriterion::Natural | crate::solvers::StopCriterion::Velocity) {
         return Err(GpuError::Criterion(format!("{:?}", opts.criterion).to_lowercase()));
     }
     match kind {

@@ -10,11 +10,11 @@
 //! (or, when asked, LMGC90's test holds); the final error is always reported.
 
 use super::lmgc_criteria::LmgcMeasures;
-use super::stopping::{CheckCadence, StopReason};
+use super::stopping::{CheckCadence, JudgedMeasure, StopReason};
 use super::{HistoryPoint, SolveReport, SolverKind, SolverOptions, StopCriterion};
 use crate::parallel::chunked_sum;
 use crate::problem::cone::project_box;
-use crate::problem::residual::{problem_error, velocity_error_rolling};
+use crate::problem::residual::problem_error;
 use crate::problem::{ContactProblem, Mat2};
 use std::time::{Duration, Instant};
 
@@ -31,7 +31,9 @@ pub struct Monitor<'a> {
     r_prev: Vec<f64>,
     tol_light: f64,
     history: Vec<HistoryPoint>,
+    /// W's diagonal blocks, for the LMGC90 tests.
     diag: Option<Vec<Mat2>>,
+    measure: JudgedMeasure,
     converged: bool,
     stop_reason: Option<(StopReason, String)>,
     cadence: CheckCadence,
@@ -50,7 +52,8 @@ pub struct Monitor<'a> {
 impl<'a> Monitor<'a> {
     /// Starts watching a solve of `problem` from `r0`.
     pub fn new(problem: &'a ContactProblem, opts: &'a SolverOptions, kind: SolverKind, r0: &[f64]) -> Self {
-        let diag = (opts.criterion != StopCriterion::Natural).then(|| problem.w.diag_blocks());
+        let lmgc = !matches!(opts.criterion, StopCriterion::Natural | StopCriterion::Velocity);
+        let diag = lmgc.then(|| problem.w.diag_blocks());
         Self {
             problem,
             opts,
@@ -63,6 +66,7 @@ impl<'a> Monitor<'a> {
             tol_light: opts.tol,
             history: Vec::new(),
             diag,
+            measure: JudgedMeasure::new(problem, opts.criterion),
             converged: false,
             stop_reason: None,
             cadence: CheckCadence::default(),
@@ -222,13 +226,7 @@ impl<'a> Monitor<'a> {
 
     /// The measure the criterion judges, of `r` with `u = W r + q`.
     fn judged(&self, r: &[f64], u: &[f64], error: f64) -> f64 {
-        match (self.opts.criterion, &self.diag) {
-            (StopCriterion::Velocity, Some(d)) => {
-                let p = self.problem;
-                velocity_error_rolling(d, &p.q, &p.mu, &p.rolling, &p.gap_rate, r, u)
-            }
-            _ => error,
-        }
+        self.measure.of(self.problem, r, u, error)
     }
 
     /// Final report: `u` and the error of the returned `r` are recomputed in f64 here. A solve

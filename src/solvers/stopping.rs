@@ -1,8 +1,37 @@
 //! The one stopping policy of every solve, CPU ([`super::monitor`]) and GPU (`gpu/driver.rs`):
-//! why a solve stopped, how often the full error is checked, and when a solve has stalled.
+//! the measure a tolerance is read in, why a solve stopped, how often the full error is checked,
+//! and when a solve has stalled.
 
 use serde::Serialize;
 use std::fmt;
+
+use super::StopCriterion;
+use crate::problem::residual::velocity_error_rolling;
+use crate::problem::{ContactProblem, Mat2};
+
+/// The f64 measure a criterion compares with `tol`: the natural-map error, or under
+/// `criterion = velocity` the worst contact's residual in velocity units (which needs the
+/// diagonal blocks of W, taken once). The LMGC90 tests judge changes between iterates, not a
+/// measure of one, and read the natural map here.
+#[derive(Clone, Debug)]
+pub struct JudgedMeasure {
+    diag: Option<Vec<Mat2>>,
+}
+
+impl JudgedMeasure {
+    /// The measure `criterion` judges `problem` by.
+    pub fn new(problem: &ContactProblem, criterion: StopCriterion) -> Self {
+        Self { diag: (criterion == StopCriterion::Velocity).then(|| problem.w.diag_blocks()) }
+    }
+
+    /// Of `r` with `u = W r + q`, whose natural-map error is `natural`.
+    pub fn of(&self, p: &ContactProblem, r: &[f64], u: &[f64], natural: f64) -> f64 {
+        match &self.diag {
+            Some(d) => velocity_error_rolling(d, &p.q, &p.mu, &p.rolling, &p.gap_rate, r, u),
+            None => natural,
+        }
+    }
+}
 
 /// Why a solve stopped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
