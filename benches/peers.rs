@@ -1,13 +1,14 @@
 //! moreau and rapier2d side by side on the same pile (README "What accuracy costs in time"):
 //! moreau settles the deposited disks once, with the scene's own solver; every configuration of
 //! both engines starts from that state (positions, velocities, and moreau's warm start), takes
-//! a few untimed steps so that each engine's own warm start is in place, then steps on while we
-//! time each step and measure, after it and outside the timer, the overlaps of the grains
+//! 100 untimed steps so that its own warm start and overlaps develop (a loose setting lets the
+//! pile sink step by step), then steps on while we time each step and measure, after it and outside the timer, the overlaps of the grains
 //! (moreau's exact detection on each engine's positions, relative to the mean diameter).
 //!
 //! `cargo bench --bench peers` (scene `scenes/pile_10k.toml`; MOREAU_PEERS_SCENE, _WARMUP (the
 //! settling steps), _LEAD (untimed steps of each configuration), _STEPS and _THREADS change it).
-//! Writes target/peers/peers.csv and peers.svg/.png (largest overlap against milliseconds per
+//! The settled state is kept in target/peers/settled_<scene>_<warmup>_<threads>.json and read
+//! back by the next run of the same scene file. Writes target/peers/peers.csv and peers.svg/.png (largest overlap against milliseconds per
 //! step, one curve per engine). rapier2d is built without its `parallel` feature, so it runs on
 //! one thread; moreau's rows say their thread count.
 
@@ -17,9 +18,11 @@ mod scene;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use moreau::io::checkpoint::{read_checkpoint, scene_identity, write_checkpoint};
 use moreau::io::plots::{write_chart, Chart, Series};
 use moreau::solvers::SolverOptions;
 use moreau::stepping::{Checkpoint, Simulation};
+use moreau::world::World;
 use scene::{kinetic_energy, penetration, rapier_pile};
 
 #[derive(serde::Serialize)]
@@ -68,7 +71,7 @@ fn measure(
 fn main() {
     let path = PathBuf::from(std::env::var("MOREAU_PEERS_SCENE").unwrap_or_else(|_| "scenes/pile_10k.toml".into()));
     let (warmup, steps) = (env("MOREAU_PEERS_WARMUP", 20), env("MOREAU_PEERS_STEPS", 20));
-    let lead = env("MOREAU_PEERS_LEAD", 5);
+    let lead = env("MOREAU_PEERS_LEAD", 100);
     let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
     let threads = env("MOREAU_PEERS_THREADS", cores);
     let load = || moreau::scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
@@ -79,7 +82,7 @@ fn main() {
         first.name,
         first.world.bodies.len()
     );
-    let (settled, checkpoint) = settle(load(), warmup, threads);
+    let (settled, checkpoint) = settle(&path, load(), warmup, threads);
     let mut rows = Vec::new();
 
     for iterations in [4usize, 8, 16] {
@@ -159,7 +162,10 @@ fn main() {
                 );
                 (measured, unconverged.get())
             });
-            let note = if unconverged > 0 { format!("{unconverged} steps missed tol") } else { String::new() };
+            let note = match unconverged {
+                0 => String::new(),
+                n => format!("{n} of {} steps missed tol", lead + steps),
+            };
             eprintln!("moreau {setting} ({t} threads): {ms:.1} ms/step, max overlap {max:.3e} d {note}");
             rows.push(Row {
                 engine: "moreau",
@@ -177,13 +183,20 @@ fn main() {
     report(&rows, &first.name, first.world.bodies.len());
 }
 
-/// The scene stepped `warmup` times with its own settings on `threads` threads: the settled
-/// world and the checkpoint every moreau configuration restarts from.
-fn settle(scene: moreau::scene::Scene, warmup: usize, threads: usize) -> (moreau::world::World, Checkpoint) {
+/// The scene (file `path`) stepped `warmup` times with its own settings on `threads` threads:
+/// the settled world and the checkpoint every moreau configuration restarts from. Kept in
+/// target/peers/ (checked against the scene file) so that a second run times without settling.
+fn settle(path: &Path, scene: moreau::scene::Scene, warmup: usize, threads: usize) -> (World, Checkpoint) {
+    let kept = Path::new("target/peers").join(format!("settled_{}_{warmup}_{threads}.json", scene.name));
+    let mut sim = Simulation::new(scene.world, scene.settings).expect("a valid scene");
+    if let Ok(c) = read_checkpoint(&kept, path) {
+        sim.restore(&c).expect("the kept settled state");
+        eprintln!("settled state read from {}", kept.display());
+        return (sim.world.clone(), c);
+    }
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a thread pool");
     pool.install(|| {
         let t = Instant::now();
-        let mut sim = Simulation::new(scene.world, scene.settings).expect("a valid scene");
         let mut missed = 0;
         for _ in 0..warmup {
             missed += usize::from(!sim.step().unwrap_or_else(|e| panic!("{e}")).converged);
@@ -193,7 +206,11 @@ fn settle(scene: moreau::scene::Scene, warmup: usize, threads: usize) -> (moreau
             "settled in {:.1} s ({missed} of {warmup} steps missed tol), kinetic energy {ke:.3e} J",
             t.elapsed().as_secs_f64()
         );
-        (sim.world.clone(), sim.checkpoint())
+        let mut c = sim.checkpoint();
+        (c.scene, c.scene_fingerprint) = scene_identity(path).expect("the scene file");
+        std::fs::create_dir_all("target/peers").expect("target/peers");
+        write_checkpoint(&c, &kept).unwrap_or_else(|e| eprintln!("settled state not kept: {e}"));
+        (sim.world.clone(), c)
     })
 }
 
