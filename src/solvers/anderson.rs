@@ -16,6 +16,7 @@
 
 use rayon::prelude::*;
 
+use super::recycled::{give_back, zeroed};
 use crate::parallel::{parallel, CHUNK};
 use crate::problem::cone::project_cone;
 use crate::problem::delassus::SweepState;
@@ -51,22 +52,34 @@ pub(super) struct Anderson {
     pub restarts: usize,
 }
 
+/// The history goes back to the pool: the next solve's mixer reuses it.
+impl Drop for Anderson {
+    fn drop(&mut self) {
+        let history = [&mut self.d_residual, &mut self.d_impulse, &mut self.d_velocity];
+        history.into_iter().flat_map(std::mem::take).for_each(give_back);
+        for v in [&mut self.before, &mut self.residual, &mut self.last_residual, &mut self.last_impulse] {
+            give_back(std::mem::take(v));
+        }
+        give_back(std::mem::take(&mut self.last_velocity));
+    }
+}
+
 impl Anderson {
     /// A mixer over `depth` sweeps of `n` impulses and `n_velocity` body velocities.
     pub fn new(depth: usize, n: usize, n_velocity: usize) -> Self {
         Self {
             depth,
             slots: Vec::with_capacity(depth),
-            d_residual: vec![vec![0.0; n]; depth],
-            d_impulse: vec![vec![0.0; n]; depth],
-            d_velocity: vec![vec![0.0; n_velocity]; depth],
+            d_residual: (0..depth).map(|_| zeroed(n)).collect(),
+            d_impulse: (0..depth).map(|_| zeroed(n)).collect(),
+            d_velocity: (0..depth).map(|_| zeroed(n_velocity)).collect(),
             gram: vec![0.0; depth * depth],
             rhs: vec![0.0; depth],
-            before: vec![0.0; n],
-            residual: vec![0.0; n],
-            last_residual: vec![0.0; n],
-            last_impulse: vec![0.0; n],
-            last_velocity: vec![0.0; n_velocity],
+            before: zeroed(n),
+            residual: zeroed(n),
+            last_residual: zeroed(n),
+            last_impulse: zeroed(n),
+            last_velocity: zeroed(n_velocity),
             has_last: false,
             reference: f64::INFINITY,
             mixed: false,

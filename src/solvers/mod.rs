@@ -25,6 +25,7 @@ pub mod lmgc_criteria;
 pub mod monitor;
 pub mod newton;
 pub mod nlgs;
+mod recycled;
 mod sparse_cholesky;
 pub mod stopping;
 pub mod truncated_newton;
