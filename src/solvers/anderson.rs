@@ -57,10 +57,14 @@ impl Drop for Anderson {
     fn drop(&mut self) {
         let history = [&mut self.d_residual, &mut self.d_impulse, &mut self.d_velocity];
         history.into_iter().flat_map(std::mem::take).for_each(give_back);
-        for v in [&mut self.before, &mut self.residual, &mut self.last_residual, &mut self.last_impulse] {
-            give_back(std::mem::take(v));
-        }
-        give_back(std::mem::take(&mut self.last_velocity));
+        let last = [
+            &mut self.before,
+            &mut self.residual,
+            &mut self.last_residual,
+            &mut self.last_impulse,
+            &mut self.last_velocity,
+        ];
+        last.into_iter().map(std::mem::take).for_each(give_back);
     }
 }
 
