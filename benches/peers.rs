@@ -6,7 +6,9 @@
 //! (moreau's exact detection on each engine's positions, relative to the mean diameter).
 //!
 //! `cargo bench --bench peers` (scene `scenes/pile_10k.toml`; MOREAU_PEERS_SCENE, _WARMUP (the
-//! settling steps), _LEAD (untimed steps of each configuration), _STEPS and _THREADS change it).
+//! settling steps), _LEAD (untimed steps of each configuration), _STEPS and _THREADS (moreau's
+//! thread counts, `1,16`; default one and all cores) change it; MOREAU_PEERS_DEVICES=cpu,gpu adds
+//! rows solved on a GPU, which take the last thread count for detection).
 //! The settled state is kept in target/peers/settled_<scene>_<warmup>_<threads>.json and read
 //! back by the next run of the same scene file. Writes target/peers/peers.csv and peers.svg/.png (largest overlap against milliseconds per
 //! step, one curve per engine). rapier2d is built without its `parallel` feature, so it runs on
@@ -18,6 +20,7 @@ mod scene;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use moreau::backend::DeviceChoice;
 use moreau::io::checkpoint::{read_checkpoint, scene_identity, write_checkpoint};
 use moreau::io::plots::{write_chart, Chart, Series};
 use moreau::solvers::SolverOptions;
@@ -73,7 +76,18 @@ fn main() {
     let (warmup, steps) = (env("MOREAU_PEERS_WARMUP", 20), env("MOREAU_PEERS_STEPS", 20));
     let lead = env("MOREAU_PEERS_LEAD", 100);
     let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
-    let threads = env("MOREAU_PEERS_THREADS", cores);
+    let thread_counts: Vec<usize> = match std::env::var("MOREAU_PEERS_THREADS") {
+        Ok(list) => {
+            list.split(',').map(|t| t.trim().parse().expect("MOREAU_PEERS_THREADS: thread counts, `1,16`")).collect()
+        }
+        Err(_) => [1, cores].into_iter().collect::<std::collections::BTreeSet<_>>().into_iter().collect(),
+    };
+    let threads = *thread_counts.last().expect("a thread count");
+    let devices: Vec<DeviceChoice> = std::env::var("MOREAU_PEERS_DEVICES")
+        .unwrap_or_else(|_| "cpu".into())
+        .split(',')
+        .map(|d| DeviceChoice::from_name(d.trim()).unwrap_or_else(|e| panic!("MOREAU_PEERS_DEVICES: {e}")))
+        .collect();
     let load = || moreau::scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
     let first = load();
     let h = first.settings.h;
@@ -122,11 +136,22 @@ fn main() {
     let tolerances = [1e-2, 1e-3, 1e-4].map(|t| (format!("tol {t:.0e}"), Some(t), None, None));
     let mixed = [1e-3, 1e-4].map(|t| (format!("tol {t:.0e}, {named}"), Some(t), None, Some(other)));
     let sweeps = [4usize, 8, 16].map(|k| (format!("{k} sweeps"), None, Some(k), None));
-    let mut thread_counts = vec![1, threads];
-    thread_counts.dedup();
-    for &t in &thread_counts {
+    // The CPU at each thread count; a GPU once, its detection on the last count, without the
+    // Anderson rows (the GPU's sweeps have none).
+    let runs: Vec<(DeviceChoice, usize)> = devices
+        .iter()
+        .flat_map(|&d| match d {
+            DeviceChoice::Cpu => thread_counts.iter().map(|&t| (d, t)).collect(),
+            _ => vec![(d, threads)],
+        })
+        .collect();
+    for &(device, t) in &runs {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().expect("a thread pool");
+        let on_gpu = device != DeviceChoice::Cpu;
         for (setting, tol, fixed, anderson) in tolerances.iter().chain(&mixed).chain(&sweeps) {
+            if on_gpu && anderson.is_some() {
+                continue;
+            }
             let mut s = load();
             let base = SolverOptions {
                 anderson: anderson.unwrap_or(s.settings.options.anderson),
@@ -142,6 +167,12 @@ fn main() {
             let ((ms, mean, max, contacts, ke), unconverged) = pool.install(|| {
                 let mut sim = Simulation::new(s.world, s.settings).expect("a valid scene");
                 sim.restore(&checkpoint).expect("the settled state");
+                if on_gpu {
+                    let line = sim.choose_device(device).unwrap_or_else(|e| panic!("{e}"));
+                    if setting == "tol 1e-2" {
+                        eprintln!("{line}");
+                    }
+                }
                 let sim = std::cell::RefCell::new(sim);
                 let unconverged = std::cell::Cell::new(0usize);
                 let measured = measure(
@@ -166,9 +197,10 @@ fn main() {
                 0 => String::new(),
                 n => format!("{n} of {} steps missed tol", lead + steps),
             };
-            eprintln!("moreau {setting} ({t} threads): {ms:.1} ms/step, max overlap {max:.3e} d {note}");
+            let engine = if on_gpu { "moreau gpu" } else { "moreau" };
+            eprintln!("{engine} {setting} ({t} threads): {ms:.1} ms/step, max overlap {max:.3e} d {note}");
             rows.push(Row {
-                engine: "moreau",
+                engine,
                 setting: setting.clone(),
                 threads: t,
                 ms_per_step: ms,
@@ -257,6 +289,7 @@ fn report(rows: &[Row], scene: &str, bodies: usize) {
         points.sort_by(|a, b| a.0.total_cmp(&b.0));
         let label = match engine {
             "rapier2d" => format!("rapier2d, 4/8/16 iterations, {threads} thread"),
+            "moreau gpu" => format!("moreau on the GPU, {fam}"),
             _ => format!("moreau, {fam}, {threads} thread(s)"),
         };
         series.push((label, points));

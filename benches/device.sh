@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# The hardware-GPU measurements of BENCHMARKS.md in one run, on a machine with a GPU that need
+# not have Rust: binaries built elsewhere are passed in. Needs the settled pile of the peer
+# benchmark (target/peers/settled_pile_10k_300_*.json, from `cargo bench --bench peers`).
+#   MOREAU=target/release/moreau PEERS=target/release/deps/peers-<hash> OUT=dir bash benches/device.sh
+# BASELINE=another/moreau adds its GPU steps beside MOREAU's (a change measured side by side);
+# LATTICES=0 leaves out `moreau bench`; PEERS_DEVICES=gpu leaves out the CPU rows of the peers.
+# Writes OUT/device.log (every table, with the device each one ran on) and OUT/runs.tgz (each
+# run's steps.csv and summary.json, the peer table and chart).
+set -u
+OUT=${OUT:-target/device}
+MOREAU=${MOREAU:-target/release/moreau}
+PEERS=${PEERS:-}
+BASELINE=${BASELINE:-}
+THREADS=${THREADS:-$(nproc)}
+mkdir -p "$OUT/runs" /tmp/xdg && chmod 700 /tmp/xdg
+export XDG_RUNTIME_DIR=/tmp/xdg
+log=$OUT/device.log
+say() { echo "== $* ($(date +%T))" | tee -a "$log"; }
+settled=$(ls target/peers/settled_pile_10k_300_*.json 2>/dev/null | head -1)
+
+say "machine: $(nproc) cores"
+nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.sm,clocks.max.sm --format=csv 2>&1 | tee -a "$log"
+# wgpu finds the GPU through the Vulkan loader; some images keep the driver's manifest aside.
+if ! "$MOREAU" bench --sizes 1000 --repeats 1 2>&1 | grep -q "^GPU: .*Vulkan" ; then
+    icd=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+    [ -f $icd ] && export VK_DRIVER_FILES=$icd
+fi
+
+if [ "${LATTICES:-1}" != 0 ]; then
+    say "W product and Jacobi iteration, lattices of 1k to 1M contacts"
+    timeout 150 "$MOREAU" bench --sizes 1000,10000,100000,1000000 --repeats 200 2>&1 | tee -a "$log"
+fi
+
+# name binary: GPU steps of the sandbox and of the settled pile, one binary after the other.
+gpu_steps() {
+    say "$1: sandbox on the GPU, tol 1e-4 (the scene's NLGS)"
+    timeout 90 "$2" run scenes/sandbox.toml --device gpu --steps 5 --vtk-every 0 --quiet \
+        --out "$OUT/runs/$1_sandbox_gpu" 2>&1 | tee -a "$log"
+    [ -n "$settled" ] || return
+    for setting in "--tol 1e-2" "--tol 1e-4" "--max-iter 4 --tol 1e-300"; do
+        say "$1: pile_10k on the GPU from its settled state, $setting"
+        timeout 60 "$2" run scenes/pile_10k.toml --restart "$settled" --device gpu --steps 30 $setting --quiet \
+            --out "$OUT/runs/$1_pile_gpu_${setting//[^a-z0-9]/}" 2>&1 | grep -v "^warning" | tee -a "$log"
+    done
+}
+[ -n "$BASELINE" ] && gpu_steps baseline "$BASELINE"
+gpu_steps moreau "$MOREAU"
+say "sandbox on the GPU, PCPG tol 1e-4"
+timeout 60 "$MOREAU" run scenes/sandbox.toml --device gpu --solver pcpg --steps 5 --vtk-every 0 --quiet \
+    --out "$OUT/runs/sandbox_gpu_pcpg" 2>&1 | tee -a "$log"
+if [ -z "$BASELINE" ]; then
+    say "sandbox on the CPU, $THREADS threads, tol 1e-4"
+    timeout 60 "$MOREAU" run scenes/sandbox.toml --device cpu --threads "$THREADS" --steps 2 --vtk-every 0 --quiet \
+        --out "$OUT/runs/sandbox_cpu" 2>&1 | tee -a "$log"
+fi
+
+if [ -n "$PEERS" ] && [ -n "$settled" ]; then
+    say "the peer pile: rapier2d, moreau on ${PEERS_DEVICES:-gpu,cpu} ($THREADS threads)"
+    cp -n "$settled" "target/peers/settled_pile_10k_300_$THREADS.json" 2>/dev/null
+    MOREAU_PEERS_WARMUP=300 MOREAU_PEERS_LEAD=${LEAD:-20} MOREAU_PEERS_STEPS=${STEPS:-10} \
+        MOREAU_PEERS_THREADS=$THREADS MOREAU_PEERS_DEVICES=${PEERS_DEVICES:-gpu,cpu} timeout 200 "$PEERS" 2>&1 | tee -a "$log"
+    cp target/peers/peers.csv target/peers/peers.png "$OUT/runs/" 2>/dev/null
+fi
+find "$OUT/runs" -name '*.vt?' -delete
+tar czf "$OUT/runs.tgz" -C "$OUT" runs && rm -rf "$OUT/runs"
+say done
