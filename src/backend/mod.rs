@@ -238,6 +238,27 @@ impl Backend {
         }
     }
 
+    /// `opts.max_iter` iterations of `kind` from `r0` in this device's own precision (f32 on a
+    /// GPU, with no f64 finish), for a caller that judges the result by a test of its own, as the
+    /// position projection does. The CPU takes over if the GPU cannot do it. Returns the report
+    /// and the GPU traffic it caused (dispatches, bytes both ways).
+    pub fn iterate(
+        &self,
+        problem: &ContactProblem,
+        kind: SolverKind,
+        opts: &SolverOptions,
+        r0: Option<&[f64]>,
+    ) -> (SolveReport, (u64, u64)) {
+        if let Device::Gpu(ctx) = &self.device {
+            let before = Traffic::now();
+            if let Ok(report) = crate::gpu::solve(ctx, problem, kind, opts, r0) {
+                let traffic = Traffic::since(before);
+                return (report, (traffic.dispatches, traffic.bytes_up + traffic.bytes_down));
+            }
+        }
+        (solvers::solve(problem, kind, opts, r0), (0, 0))
+    }
+
     /// Solves `problem` from `r0` (warm start; zero if `None`) on this device.
     pub fn solve(
         &self,

@@ -37,6 +37,7 @@ struct Row {
     seconds: f64,
     detection_seconds: f64,
     solve_seconds: f64,
+    projection_seconds: f64,
 }
 
 /// One row of `walls.csv`: a wall's position and the grains' mean force and moment on it.
@@ -97,6 +98,8 @@ pub struct RunSummary {
     pub solve_seconds: f64,
     /// Time in detection (s).
     pub detection_seconds: f64,
+    /// Time in the position projection (s).
+    pub projection_seconds: f64,
     /// Steps whose solve met the tolerance.
     pub converged_steps: usize,
     /// Steps whose solve did not.
@@ -145,6 +148,7 @@ impl RunSummary {
         self.seconds += r.seconds;
         self.solve_seconds += r.solve_seconds;
         self.detection_seconds += r.detection_seconds;
+        self.projection_seconds += r.projection_seconds;
         if r.converged {
             self.converged_steps += 1;
         } else {
@@ -181,12 +185,13 @@ impl RunSummary {
     /// One line for the end of a run.
     pub fn line(&self) -> String {
         format!(
-            "{}: {} steps in {:.3} s ({:.1} steps/s; solve {:.0} %), device {} ({} threads), {} tol {:.0e}: {}/{} steps converged (max error {:.2e}), iterations mean {:.1} median {} p95 {} max {} ({} at max_iter), contacts mean {:.0}, max penetration {:.2e} of the mean diameter, final kinetic energy {:.3e}",
+            "{}: {} steps in {:.3} s ({:.1} steps/s; solve {:.0} %, projection {:.0} %), device {} ({} threads), {} tol {:.0e}: {}/{} steps converged (max error {:.2e}), iterations mean {:.1} median {} p95 {} max {} ({} at max_iter), contacts mean {:.0}, max penetration {:.2e} of the mean diameter, final kinetic energy {:.3e}",
             self.scene,
             self.steps,
             self.seconds,
             self.steps_per_second,
             100.0 * self.solve_seconds / self.seconds.max(1e-12),
+            100.0 * self.projection_seconds / self.seconds.max(1e-12),
             self.device,
             self.threads,
             self.solver,
@@ -311,6 +316,7 @@ impl RunOutput {
             seconds: r.seconds,
             detection_seconds: r.detection_seconds,
             solve_seconds: r.solve_seconds,
+            projection_seconds: r.projection_seconds,
         })?;
         Ok(())
     }

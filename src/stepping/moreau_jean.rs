@@ -402,6 +402,7 @@ fn apply(
         seconds: 0.0,
         detection_seconds,
         solve_seconds: 0.0,
+        projection_seconds: 0.0,
     };
     let mut v_end = v_free;
     let mut impulses = Vec::new();
@@ -433,6 +434,7 @@ fn apply(
     // moved to first order, or, when a grain was kicked beyond its reach, on the contacts
     // detected at the end of the step (those the start missed must not overlap at all).
     update_bodies(&mut sim.world, &v_end, dofs, (h, theta));
+    let projection_start = Instant::now();
     if let Some(problem) = &problem {
         let Delassus::MatrixFree(op) = &problem.w else { unreachable!("the step builds a matrix-free problem") };
         if outran_reach(&before, &sim.world, alert, &reach.0) {
@@ -443,15 +445,24 @@ fn apply(
             report.missed = missed;
             let end_op = operator(&sim.world, &end, dofs).map_err(|message| StepError::Problem { step, message })?;
             let mut gaps: Vec<f64> = end.iter().map(|c| c.gap).collect();
-            report.projected = project_positions(&mut sim.world, &end_op, &end, &mut gaps, &target, report.iterations);
+            let (projected, traffic) =
+                project_positions(&mut sim.world, &sim.backend, &end_op, &end, &mut gaps, &target, report.iterations);
+            report.projected = projected;
+            report.add_gpu_traffic(traffic);
             report.max_penetration = gaps.iter().fold(0.0, |m, g| m.max(-g));
         } else {
             let start = (before.position.as_slice(), before.angle.as_slice());
             let mut gaps = end_of_step_gaps(op, &detected, &before.walls, start, &sim.world, h);
             let target: Vec<f64> = detected.iter().map(|c| c.gap.min(0.0)).collect();
-            report.projected = project_positions(&mut sim.world, op, &detected, &mut gaps, &target, report.iterations);
+            let (projected, traffic) =
+                project_positions(&mut sim.world, &sim.backend, op, &detected, &mut gaps, &target, report.iterations);
+            report.projected = projected;
+            report.add_gpu_traffic(traffic);
             report.max_penetration = gaps.iter().fold(0.0, |m, g| m.max(-g));
         }
+        // Less the detection at the end of the step, which counts as detection.
+        report.projection_seconds =
+            projection_start.elapsed().as_secs_f64() - (detection_seconds - report.detection_seconds);
     }
     if let Err(message) = check_state(&before.position, &sim.world, extent) {
         before.restore(&mut sim.world);

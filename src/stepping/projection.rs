@@ -6,6 +6,7 @@
 
 use glam::DVec2;
 
+use crate::backend::Backend;
 use crate::detection::{Antagonist, DetectedContact};
 use crate::problem::{ContactProblem, Delassus, MatrixFree};
 use crate::solvers::{SolverKind, SolverOptions, StopCriterion};
@@ -14,7 +15,9 @@ use crate::world::{Wall, World};
 /// Sweeps of the projection, a correction of positions bounded in cost: a quarter of the step's
 /// solve, within these bounds; what it leaves shows in the step's `max_penetration`.
 const PROJECTION_SWEEPS: (usize, usize) = (100, 1000);
-const PROJECTION_BATCH: usize = 20;
+/// Sweeps between two checks of the projection's test: on a GPU a sweep costs so little beside
+/// a check (an upload, two f64 products on the CPU) that five times as many go between them.
+const PROJECTION_BATCH: (usize, usize) = (20, 100);
 
 /// A new overlap below this fraction of the smaller grain's radius is left as it is: the
 /// projection runs only where the θ-update leaves a pair visibly deeper than it started.
@@ -57,15 +60,17 @@ pub(super) fn end_of_step_gaps(
 /// solution of the frictionless position problem `g + W p ≥ target ⊥ p ≥ 0`; the target is
 /// `min(g_start, 0)`: an overlap a pair started the step with is kept, as LMGC90 keeps it, and no
 /// new one is made); velocities stay as the solve left them. Updates `gaps`; returns how many
-/// contacts needed it.
+/// contacts needed it and the GPU traffic of its sweeps (dispatches, bytes). Its sweeps run on
+/// `backend`'s device; the test that ends them is the same on both, in f64.
 pub(super) fn project_positions(
     world: &mut World,
+    backend: &Backend,
     op: &MatrixFree,
     contacts: &[DetectedContact],
     gaps: &mut [f64],
     targets: &[f64],
     solve_iterations: usize,
-) -> usize {
+) -> (usize, (u64, u64)) {
     let b = &world.bodies;
     let size = |c: &DetectedContact| match c.other {
         Antagonist::Body(j) => b.bounding_radius[c.i].min(b.bounding_radius[j]),
@@ -74,7 +79,7 @@ pub(super) fn project_positions(
     let excess = |a: usize| targets[a] - gaps[a];
     let deeper = (0..contacts.len()).filter(|&a| excess(a) > PROJECTION_SLACK * size(&contacts[a])).count();
     if deeper == 0 {
-        return 0;
+        return (0, (0, 0));
     }
     // Slack far beyond the deepest excess cannot matter; capping it keeps the solver's scale
     // (the largest |q|) tied to the corrections, not to the widest open contact.
@@ -92,23 +97,29 @@ pub(super) fn project_positions(
         q[2 * a] = (-excess(a)).min(cap);
     }
     let Ok(problem) = ContactProblem::new(Delassus::MatrixFree(op.clone()), q, vec![0.0; contacts.len()]) else {
-        return 0;
+        return (0, (0, 0));
     };
     // NLGS in batches until every contact is within its slack of its target (the measure that
-    // matters here, whatever the conditioning), or the sweep budget is spent.
-    let opts = SolverOptions {
-        tol: 1e-12,
-        max_iter: PROJECTION_BATCH,
-        criterion: StopCriterion::Velocity,
-        ..Default::default()
+    // matters here, whatever the conditioning), or the sweep budget is spent. The solver's own
+    // test never stops a batch (tol 1e-12); on a GPU it is the natural map's, which the GPU
+    // estimates without reading the impulses back.
+    let opts = match backend.is_gpu() {
+        false => SolverOptions {
+            tol: 1e-12,
+            max_iter: PROJECTION_BATCH.0,
+            criterion: StopCriterion::Velocity,
+            ..Default::default()
+        },
+        true => SolverOptions { tol: 1e-12, max_iter: PROJECTION_BATCH.1, ..Default::default() },
     };
     let budget = (solve_iterations / 4).clamp(PROJECTION_SWEEPS.0, PROJECTION_SWEEPS.1);
-    let (mut p, mut sweeps) = (vec![0.0; 2 * contacts.len()], 0);
+    let (mut p, mut sweeps, mut traffic) = (vec![0.0; 2 * contacts.len()], 0, (0, 0));
     let mut dg = vec![0.0; 2 * contacts.len()];
     let dx = loop {
-        let solved = crate::solvers::solve(&problem, SolverKind::Nlgs, &opts, Some(&p));
+        let (solved, batch_traffic) = backend.iterate(&problem, SolverKind::Nlgs, &opts, Some(&p));
+        traffic = (traffic.0 + batch_traffic.0, traffic.1 + batch_traffic.1);
         if solved.r.iter().any(|x| !x.is_finite()) {
-            return 0;
+            return (0, traffic);
         }
         (p, sweeps) = (solved.r, sweeps + solved.iterations.max(1));
         let dx = op.body_velocities(&p);
@@ -127,7 +138,7 @@ pub(super) fn project_positions(
             bodies.angle[k] += dx[s * k + 2];
         }
     }
-    deeper
+    (deeper, traffic)
 }
 
 /// Target gap of each contact: `min(g_start, 0)` for a pair that was detected at the start of the

@@ -117,7 +117,7 @@ pub struct StepReport {
     pub stop: StopReason,
     /// Why the solve stopped, in words.
     pub stop_reason: String,
-    /// GPU dispatches and bytes moved CPU ↔ GPU by the step's solve (0 on the CPU).
+    /// GPU dispatches and bytes moved CPU ↔ GPU by the step's solve and projection (0 on the CPU).
     pub gpu_dispatches: u64,
     /// Bytes moved between CPU and GPU.
     pub gpu_bytes: u64,
@@ -139,6 +139,16 @@ pub struct StepReport {
     pub detection_seconds: f64,
     /// Solve time (s).
     pub solve_seconds: f64,
+    /// Time in the position projection (s), on the step's device.
+    pub projection_seconds: f64,
+}
+
+impl StepReport {
+    /// Adds GPU traffic (dispatches, bytes) done by the step outside its solve.
+    pub(crate) fn add_gpu_traffic(&mut self, (dispatches, bytes): (u64, u64)) {
+        self.gpu_dispatches += dispatches;
+        self.gpu_bytes += bytes;
+    }
 }
 
 /// A step or a setting refused; the simulation keeps its last good state.
