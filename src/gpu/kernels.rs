@@ -103,6 +103,8 @@ pub struct Kernels {
     pub apgd_rebox: Kernel,
     /// The `natural_map` kernel.
     pub natural_map: Kernel,
+    /// The `velocity_residual` kernel.
+    pub velocity_residual: Kernel,
 }
 
 /// The shared WGSL a kernel pulls in with `#import name` lines: written once, composed at load.
@@ -116,7 +118,7 @@ const MODULES: [(&str, &str); 5] = [
 
 /// Every kernel: name, WGSL (before composition), and whether it is specialised by the
 /// rotation and friction constants.
-pub const KERNELS: [(&str, &str, bool); 18] = [
+pub const KERNELS: [(&str, &str, bool); 19] = [
     ("body_accumulate", include_str!("../../shaders/body_accumulate.wgsl"), true),
     ("contact_gather", include_str!("../../shaders/contact_gather.wgsl"), true),
     ("bsr_product", include_str!("../../shaders/bsr_product.wgsl"), false),
@@ -135,6 +137,7 @@ pub const KERNELS: [(&str, &str, bool); 18] = [
     ("apgd_momentum", include_str!("../../shaders/apgd_momentum.wgsl"), false),
     ("apgd_rebox", include_str!("../../shaders/apgd_rebox.wgsl"), false),
     ("natural_map", include_str!("../../shaders/natural_map.wgsl"), false),
+    ("velocity_residual", include_str!("../../shaders/velocity_residual.wgsl"), false),
 ];
 
 /// `source` with each `#import name` line replaced by that shared module (a module imported
@@ -192,6 +195,7 @@ impl Kernels {
             apgd_momentum: k("apgd_momentum"),
             apgd_rebox: k("apgd_rebox"),
             natural_map: k("natural_map"),
+            velocity_residual: k("velocity_residual"),
         }
     }
 }

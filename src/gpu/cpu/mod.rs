@@ -20,3 +20,4 @@ pub mod nlgs_colour_bsr;
 pub mod reduce_dot;
 pub mod reduce_final;
 pub mod single_contact;
+pub mod velocity_residual;
