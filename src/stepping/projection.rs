@@ -15,8 +15,9 @@ use crate::world::{Wall, World};
 /// Sweeps of the projection, a correction of positions bounded in cost: a quarter of the step's
 /// solve, within these bounds; what it leaves shows in the step's `max_penetration`.
 const PROJECTION_SWEEPS: (usize, usize) = (100, 1000);
-/// Sweeps between two checks of the projection's test: on a GPU a sweep costs so little beside
-/// a check (an upload, two f64 products on the CPU) that five times as many go between them.
+/// Sweeps between two checks of the projection's test on the CPU, and before the first on a GPU:
+/// there a sweep costs so little beside a batch's overhead (an upload, four f64 products on the
+/// CPU) that five times as many go first, and each later batch doubles, within the budget.
 const PROJECTION_BATCH: (usize, usize) = (20, 100);
 
 /// A new overlap below this fraction of the smaller grain's radius is left as it is: the
@@ -103,7 +104,7 @@ pub(super) fn project_positions(
     // matters here, whatever the conditioning), or the sweep budget is spent. The solver's own
     // test never stops a batch (tol 1e-12); on a GPU it is the natural map's, which the GPU
     // estimates without reading the impulses back.
-    let opts = match backend.is_gpu() {
+    let mut opts = match backend.is_gpu() {
         false => SolverOptions {
             tol: 1e-12,
             max_iter: PROJECTION_BATCH.0,
@@ -127,6 +128,9 @@ pub(super) fn project_positions(
         let within = (0..contacts.len()).all(|a| excess(a) - dg[2 * a] <= PROJECTION_SLACK * size(&contacts[a]));
         if within || solved.converged || sweeps >= budget {
             break dx;
+        }
+        if backend.is_gpu() {
+            opts.max_iter = (2 * opts.max_iter).min(budget - sweeps);
         }
     };
     gaps.iter_mut().enumerate().for_each(|(a, g)| *g += dg[2 * a]);
