@@ -374,17 +374,21 @@ fn default_solver(tol: f64, device: DeviceChoice) -> SolverKind {
 
 /// Picks the device for solves of `solver` with `opts` (the backend decides) and says which.
 pub(crate) fn choose_backend(choice: DeviceChoice, solver: SolverKind, opts: &SolverOptions) -> Result<Backend> {
-    choose_backend_for(choice, solver, opts, false)
+    let backend = Backend::choose(choice, solver, opts)?;
+    eprintln!("device: {}", backend.describe());
+    Ok(backend)
 }
 
-/// [`choose_backend`] for a scene whose problems may carry rolling unknowns (CPU only).
-pub(crate) fn choose_backend_for(
+/// [`choose_backend`] for the steps of a scene of `bodies` bodies whose problems may carry
+/// rolling unknowns (CPU only).
+pub(crate) fn choose_backend_for_scene(
     choice: DeviceChoice,
     solver: SolverKind,
     opts: &SolverOptions,
     rolling: bool,
+    bodies: usize,
 ) -> Result<Backend> {
-    let backend = Backend::choose_for(choice, solver, opts, rolling)?;
+    let backend = Backend::choose_for_scene(choice, solver, opts, rolling, bodies)?;
     eprintln!("device: {}", backend.describe());
     Ok(backend)
 }

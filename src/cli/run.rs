@@ -7,7 +7,7 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::punch::{run_punch, PunchOverrides};
-use super::{choose_backend_for, set_threads, DeviceChoice};
+use super::{choose_backend_for_scene, set_threads, DeviceChoice};
 use crate::io::checkpoint::{fingerprint, read_checkpoint, write_checkpoint};
 use crate::io::run_output::{RunOutput, RunSummary};
 use crate::io::siconos::{write_fc2d, Storage};
@@ -106,7 +106,8 @@ pub fn run_command(a: RunArgs) -> Result<()> {
     let (vtk_every, picture_step) = output_steps(&a, &scene, start, last)?;
     let first = start + 1;
     let rolling = scene.world.effects.rolling_resistance;
-    let backend = choose_backend_for(a.device, scene.settings.solver, &scene.settings.options, rolling)?;
+    let bodies = scene.world.bodies.len();
+    let backend = choose_backend_for_scene(a.device, scene.settings.solver, &scene.settings.options, rolling, bodies)?;
     let default_dir = match start {
         0 => scene.name.clone(),
         k => format!("{}_from_{k}", scene.name),

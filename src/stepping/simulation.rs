@@ -316,10 +316,12 @@ impl Simulation {
     }
 
     /// Solves every step on the device `choice` picks for the settings' solve (`auto`: a
-    /// hardware GPU that can do it, else the CPU); returns the device and why, in one line.
+    /// hardware GPU that can do it, for a scene of at least [`crate::backend::GPU_MIN_BODIES`]
+    /// bodies, else the CPU); returns the device and why, in one line.
     pub fn choose_device(&mut self, choice: DeviceChoice) -> Result<String, StepError> {
         let rolling = self.world.effects.rolling_resistance;
-        let backend = Backend::choose_for(choice, self.settings.solver, &self.settings.options, rolling)
+        let bodies = self.world.bodies.len();
+        let backend = Backend::choose_for_scene(choice, self.settings.solver, &self.settings.options, rolling, bodies)
             .map_err(|e| StepError::Settings(e.to_string()))?;
         let line = backend.describe();
         self.backend = backend;
