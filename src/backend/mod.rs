@@ -154,13 +154,7 @@ impl Backend {
         rolling: bool,
         bodies: usize,
     ) -> Result<Self, BackendError> {
-        let gpu_could = !rolling && gpu_refusal(kind, opts).is_none() && opts.tol >= F32_FLOOR;
-        if choice == DeviceChoice::Auto && gpu_could && bodies < GPU_MIN_BODIES {
-            return Ok(Self::cpu_because(format!(
-                "{bodies} bodies, fewer than {GPU_MIN_BODIES}: too few to gain from a GPU, whose sweeps pay one dispatch per colour"
-            )));
-        }
-        Self::choose_for(choice, kind, opts, rolling)
+        Self::choose_with(choice, kind, opts, rolling, Some(bodies))
     }
 
     /// [`Self::choose`] for problems that may carry rolling unknowns (`rolling`), which only the
@@ -170,6 +164,18 @@ impl Backend {
         kind: SolverKind,
         opts: &SolverOptions,
         rolling: bool,
+    ) -> Result<Self, BackendError> {
+        Self::choose_with(choice, kind, opts, rolling, None)
+    }
+
+    /// The one device choice: [`Self::choose_for`], and for a scene (`bodies`) the size rule of
+    /// `auto`, after what the GPU cannot do at all.
+    fn choose_with(
+        choice: DeviceChoice,
+        kind: SolverKind,
+        opts: &SolverOptions,
+        rolling: bool,
+        bodies: Option<usize>,
     ) -> Result<Self, BackendError> {
         match choice {
             DeviceChoice::Auto if rolling => return Ok(Self::cpu_because(ROLLING_ON_CPU)),
@@ -200,6 +206,11 @@ impl Backend {
                     return cpu(format!(
                         "tol {:.0e} is below what f32 iterations reach ({F32_FLOOR:.0e}); --device gpu iterates in f32, then finishes in f64 on the CPU",
                         opts.tol
+                    ));
+                }
+                if let Some(bodies) = bodies.filter(|&n| n < GPU_MIN_BODIES) {
+                    return cpu(format!(
+                        "{bodies} bodies, fewer than {GPU_MIN_BODIES}: too few to gain from a GPU, whose sweeps pay one dispatch per colour"
                     ));
                 }
                 match GpuContext::hardware() {
