@@ -5,8 +5,9 @@
 //! whose measure the natural-map estimate does not bound, the estimate is that measure's own
 //! (`velocity_residual.wgsl`: the largest residual of each 1,024 contacts comes back), and the
 //! f64 judge is the CPU's [`JudgedMeasure`]. Stop at the tolerance, at max_iter, or when the
-//! error stops improving below 1e-3 (a plateau where f32 may be the limit, reported). K doubles while the error is more than 100 × tol
-//! away; near tol it starts again at 16 and doubles up to 128 while the error stays near.
+//! error stops improving below 1e-3 (a plateau where f32 may be the limit, reported). K doubles
+//! while the error is more than 100 × tol away; near tol it starts again at 16 and doubles up to
+//! 128 while the error stays near.
 
 use std::time::Instant;
 
