@@ -235,6 +235,39 @@ fn the_gpu_stops_on_the_velocity_test_as_the_cpu_does() {
     }
 }
 
+/// A GPU solve says how it checked its error: a converged one was judged in f64 at least once,
+/// never more often than it estimated, and at most once per batch of 8 iterations; a CPU solve
+/// reports no GPU check. `moreau bench --scene` times the GPU's sweep alone beside its solve.
+#[test]
+fn a_gpu_solve_counts_its_checks_and_the_scene_bench_times_its_sweep() {
+    let Some(ctx) = common::gpu_context() else { return };
+    let p = lattice_packing(20, 10, 0.3, 3);
+    let opts = SolverOptions { tol: 1e-5, max_iter: 20_000, ..SolverOptions::default() };
+    let gpu = moreau::gpu::solve(&ctx, &p, SolverKind::Nlgs, &opts, None).unwrap();
+    assert!(gpu.converged, "{}", gpu.stop_reason);
+    let c = gpu.gpu_checks;
+    assert!(c.judged >= 1 && c.estimates >= c.judged && c.judge_seconds > 0.0, "{c:?}");
+    assert!(8 * c.estimates <= gpu.iterations + 8, "{c:?} for {} iterations", gpu.iterations);
+    let said = format!("{} error estimates on the GPU, {} of them judged in f64", c.estimates, c.judged);
+    assert!(gpu.notes.iter().any(|n| n.starts_with(&said)), "{:?}", gpu.notes);
+    let cpu = solve(&p, SolverKind::Nlgs, &opts, None);
+    assert_eq!((cpu.gpu_checks.estimates, cpu.gpu_checks.judged), (0, 0));
+
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/pile.toml");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_moreau"))
+        .args(["bench", "--steps", "3", "--sweeps", "4", "--threads-list", "1", "--scene"])
+        .arg(&scene)
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let row = out.lines().skip_while(|l| !l.contains("NLGS sweep ms (kernels only)")).nth(2).expect("a GPU row");
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    let (sweep_ms, colours, dispatch_ms): (f64, usize, f64) =
+        (cells[2].parse().unwrap(), cells[3].parse().unwrap(), cells[4].parse().unwrap());
+    assert!(sweep_ms > 0.0 && sweep_ms.is_finite() && dispatch_ms > 0.0 && colours >= 2, "{row}");
+}
+
 #[test]
 fn a_solver_the_gpu_lacks_is_a_clear_error() {
     let Some(ctx) = common::gpu_context() else { return };

@@ -200,6 +200,14 @@ fn nothing_is_silently_accepted() {
     refused(&o, &["--n 0", "at least 1"]);
     let o = moreau().args(["bench", "--sizes", "100", "--solve-to=-1"]).output().unwrap();
     refused(&o, &["--solve-to -1", "> 0"]);
+    // A lone disk in the air: no step has a problem to time sweeps on.
+    std::fs::write(dir.join("lone.toml"), SMALL).unwrap();
+    let o = moreau()
+        .args(["bench", "--steps", "1", "--threads-list", "1", "--scene"])
+        .arg(dir.join("lone.toml"))
+        .output()
+        .unwrap();
+    refused(&o, &["lone.toml", "no contacts"]);
     let o = moreau()
         .args([
             "sweep",

@@ -411,6 +411,7 @@ fn solve_mixed(
         parts,
         gpu_dispatches: 0,
         gpu_bytes: 0,
+        gpu_checks: gpu.gpu_checks,
         r: cpu.r,
         u: cpu.u,
         iterates: Vec::new(),

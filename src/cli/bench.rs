@@ -7,7 +7,8 @@ use std::time::Instant;
 use anyhow::{bail, Result};
 
 use crate::backend::Backend;
-use crate::gpu::{timing::kernel_times, GpuContext};
+use crate::gpu::timing::{kernel_times, nlgs_sweep_times};
+use crate::gpu::GpuContext;
 use crate::problem::generate::lattice_packing;
 use crate::problem::ContactProblem;
 use crate::solvers::jacobi::jacobi_update;
@@ -162,12 +163,14 @@ fn scene_bench(path: &Path, a: &BenchArgs) -> Result<()> {
         bail!("--threads-list {t}: each thread count must lie in 1..=1024");
     }
     let mut reference: Option<ContactProblem> = None;
+    let mut scene_options: Option<SolverOptions> = None;
     let mut rows = Vec::new();
     for &t in &threads {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build()?;
         let row = pool.install(|| -> Result<SceneRow> {
             let scene = crate::scene::load(path)?;
             let opts = scene.settings.options.clone();
+            scene_options.get_or_insert_with(|| opts.clone());
             let mut sim = Simulation::new(scene.world, scene.settings)?;
             sim.keep_problems(true);
             let (mut step_s, mut detect_s, mut its, mut contacts) = (0.0, 0.0, 0usize, 0usize);
@@ -176,7 +179,13 @@ fn scene_bench(path: &Path, a: &BenchArgs) -> Result<()> {
                 (step_s, detect_s) = (step_s + r.seconds, detect_s + r.detection_seconds);
                 (its, contacts) = (its + r.iterations, contacts + r.contacts);
             }
-            let p = reference.get_or_insert_with(|| sim.last_problem().cloned().expect("a scene with contacts"));
+            if reference.is_none() {
+                let Some(last) = sim.last_problem() else {
+                    bail!("{}: no contacts in its last timed step: time more steps (--steps)", path.display())
+                };
+                reference = Some(last.clone());
+            }
+            let p = reference.as_ref().expect("set above");
             let nc = p.n_contacts();
             let r: Vec<f64> = vec![0.0; 2 * nc];
             let mut u = vec![0.0; 2 * nc];
@@ -241,6 +250,49 @@ fn scene_bench(path: &Path, a: &BenchArgs) -> Result<()> {
             base / r.sweep_ms
         );
     }
+    if let (Some(p), Some(opts)) = (&reference, &scene_options) {
+        gpu_scene_rows(p, opts, a)?;
+    }
+    Ok(())
+}
+
+/// On the same problem, a GPU's NLGS sweep alone (kernels, no check) and its NLGS solve at the
+/// scene's tolerance from r = 0: the difference per sweep is what the solve's checks cost.
+fn gpu_scene_rows(p: &ContactProblem, opts: &SolverOptions, a: &BenchArgs) -> Result<()> {
+    let ctx = match GpuContext::new() {
+        Ok(ctx) => ctx,
+        Err(e) => {
+            println!("no GPU rows: {e}");
+            return Ok(());
+        }
+    };
+    println!("GPU: {}", ctx.describe());
+    if ctx.is_software() {
+        println!("(a software adapter: these rows measure the CPU running lavapipe, not a GPU)");
+    }
+    let times = nlgs_sweep_times(&ctx, p, a.sweeps)?;
+    let sweep = times.sweep;
+    let backend = Backend::gpu(ctx);
+    let opts = SolverOptions { anderson: 0, ..opts.clone() };
+    let solved = backend.solve(p, SolverKind::Nlgs, &opts, None)?;
+    let per_sweep = (solved.iterations > 0).then(|| solved.seconds / solved.iterations as f64);
+    let c = solved.gpu_checks;
+    println!("| contacts | NLGS sweep ms (kernels only) | colours | largest colour's dispatch ms | contact updates/s | solve to tol {:.0e}: sweeps, ms per sweep | error estimates, judged in f64 (CPU ms) |", opts.tol);
+    println!("|---|---|---|---|---|---|---|");
+    println!(
+        "| {} | {:.4} | {} | {:.4} | {:.2e} | {}{}, {} | {}, {} ({:.1}) |",
+        p.n_contacts(),
+        1e3 * sweep,
+        times.colours,
+        1e3 * times.largest_colour,
+        p.n_contacts() as f64 / sweep,
+        solved.iterations,
+        if solved.converged { "" } else { " (not converged)" },
+        per_sweep.map_or("–".into(), |s| format!("{:.4}", 1e3 * s)),
+        c.estimates,
+        c.judged,
+        1e3 * c.judge_seconds
+    );
     Ok(())
 }
 

@@ -22,7 +22,7 @@ use crate::problem::cone::project_cone;
 use crate::problem::residual::{error_of, free_velocity_bound, gap_term};
 use crate::problem::ContactProblem;
 use crate::solvers::stopping::{JudgedMeasure, StallWatch, StopReason};
-use crate::solvers::{HistoryPoint, SolveReport, SolverKind, SolverOptions, StopCriterion};
+use crate::solvers::{GpuChecks, HistoryPoint, SolveReport, SolverKind, SolverOptions, StopCriterion};
 
 /// The f64 starting impulses, projected on the cone (warm start, else zero).
 pub fn initial_impulses(p: &ContactProblem, r0: Option<&[f64]>) -> Vec<f64> {
@@ -77,6 +77,7 @@ pub fn iterate(
     let mut stall = StallWatch::new(error);
     let mut iterations = 0usize;
     let (mut batch, mut near) = (8usize, false);
+    let mut checks = GpuChecks::default();
     let (stop, stop_reason);
     loop {
         if error <= opts.tol {
@@ -111,11 +112,15 @@ pub fn iterate(
         }
         // Near the tolerance the f32 estimate is not trusted either way: judge in f64.
         let exact = estimate <= 2.0 * opts.tol;
+        checks.estimates += 1;
         if exact {
+            let judging = Instant::now();
             r = to_f64(&read_back::<[f32; 2]>(ctx, r_buf, nc).map_err(GpuError::Runtime)?);
             // Judge what would be returned: f32 impulses (and APGD's lagging box) landed on the f64 cone.
             land_on_cone(p, &mut r);
             error = judge(&r).0;
+            checks.judged += 1;
+            checks.judge_seconds += judging.elapsed().as_secs_f64();
         } else {
             error = estimate;
         }
@@ -168,10 +173,16 @@ pub fn iterate(
             stop
         },
         stop_reason,
-        notes: Vec::new(),
+        notes: vec![format!(
+            "{} error estimates on the GPU, {} of them judged in f64 on the CPU ({:.1} ms)",
+            checks.estimates,
+            checks.judged,
+            1e3 * checks.judge_seconds
+        )],
         parts: Vec::new(),
         gpu_dispatches: 0,
         gpu_bytes: 0,
+        gpu_checks: checks,
         r,
         u,
         iterates: Vec::new(),

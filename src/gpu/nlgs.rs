@@ -26,6 +26,120 @@ struct Range {
     _pad: [u32; 2],
 }
 
+/// One coloured NLGS sweep ready to record: a dispatch per colour, with the buffers its bind
+/// groups use kept alive. The solve records it between checks; `moreau bench` times it alone.
+pub struct ColouredSweep {
+    kernels: std::sync::Arc<super::kernels::Kernels>,
+    matrix_free: bool,
+    per_colour: Vec<(BindGroup, u32)>,
+    _buffers: Vec<GpuBuffer>,
+}
+
+impl ColouredSweep {
+    /// The sweep of `p` (uploaded as `gp`) over the impulses in `r_buf` (which hold `r`).
+    pub fn new(ctx: &GpuContext, p: &ContactProblem, gp: &GpuProblem, r_buf: &GpuBuffer) -> Self {
+        let kernels = &gp.kernels;
+        let diag: Vec<[f32; 4]> = p.w.diag_blocks().iter().map(|d| d.map(|x| x as f32)).collect();
+        let diag_buf = storage(ctx, "diag", &diag);
+        // Per colour: its range uniform (kept alive by its bind group) and its size.
+        let ranges = |c: &Colouring| -> Vec<(GpuBuffer, u32)> {
+            (0..c.n_colours())
+                .map(|k| {
+                    let range = Range { start: c.start[k], count: c.start[k + 1] - c.start[k], _pad: [0; 2] };
+                    (uniform(ctx, "colour", &[range]), range.count)
+                })
+                .collect()
+        };
+        match &gp.matrix {
+            GpuMatrix::MatrixFree { layout, contacts, body_start, body_list, inv_mass } => {
+                // The operator's own colouring (repaired from the last step's in a simulation).
+                let colouring = match &p.w {
+                    Delassus::MatrixFree(op) => op.colouring().clone(),
+                    Delassus::Sparse(_) => Colouring::matrix_free(layout),
+                };
+                let order = storage(ctx, "order", &colouring.order);
+                let v = storage(ctx, "v", &vec![[0.0f32; 4]; layout.inv_mass.len()]);
+                // v = M⁻¹ Bᵀ r of the starting impulses, once.
+                let accumulate = bind(
+                    ctx,
+                    &kernels.body_accumulate,
+                    &[
+                        ("contacts", contacts),
+                        ("body_start", body_start),
+                        ("body_list", body_list),
+                        ("inv_mass", inv_mass),
+                        ("r", r_buf),
+                        ("v", &v),
+                    ],
+                );
+                submit(ctx, "nlgs start", |pass| {
+                    dispatch(pass, &kernels.body_accumulate, &accumulate, groups(layout.inv_mass.len()))
+                });
+                let per_colour = ranges(&colouring)
+                    .into_iter()
+                    .map(|(range, count)| {
+                        let buffers = [
+                            ("contacts", contacts),
+                            ("inv_mass", inv_mass),
+                            ("diag", &diag_buf),
+                            ("q", &gp.q),
+                            ("mu", &gp.mu),
+                            ("order", &order),
+                            ("r", r_buf),
+                            ("v", &v),
+                            ("range", &range),
+                        ];
+                        (bind(ctx, &kernels.nlgs_colour, &buffers), count)
+                    })
+                    .collect();
+                Self { kernels: kernels.clone(), matrix_free: true, per_colour, _buffers: vec![diag_buf, order, v] }
+            }
+            GpuMatrix::Sparse { layout, row_ptr, cols, blocks } => {
+                let colouring = Colouring::block_sparse(layout);
+                let order = storage(ctx, "order", &colouring.order);
+                let per_colour = ranges(&colouring)
+                    .into_iter()
+                    .map(|(range, count)| {
+                        let buffers = [
+                            ("row_ptr", row_ptr),
+                            ("cols", cols),
+                            ("blocks", blocks),
+                            ("diag", &diag_buf),
+                            ("q", &gp.q),
+                            ("mu", &gp.mu),
+                            ("order", &order),
+                            ("r", r_buf),
+                            ("range", &range),
+                        ];
+                        (bind(ctx, &kernels.nlgs_colour_bsr, &buffers), count)
+                    })
+                    .collect();
+                Self { kernels: kernels.clone(), matrix_free: false, per_colour, _buffers: vec![diag_buf, order] }
+            }
+        }
+    }
+
+    /// Records one sweep: a dispatch per colour.
+    pub fn record(&self, pass: &mut wgpu::ComputePass) {
+        for k in 0..self.per_colour.len() {
+            self.record_colour(pass, k);
+        }
+    }
+
+    /// Records colour `k`'s dispatch alone.
+    pub fn record_colour(&self, pass: &mut wgpu::ComputePass, k: usize) {
+        let pipeline = if self.matrix_free { &self.kernels.nlgs_colour } else { &self.kernels.nlgs_colour_bsr };
+        let (group, count) = &self.per_colour[k];
+        dispatch(pass, pipeline, group, groups(*count as usize));
+    }
+
+    /// Colours, and the largest one (most contacts).
+    pub fn colours(&self) -> (usize, usize) {
+        let largest = (0..self.per_colour.len()).max_by_key(|&k| self.per_colour[k].1).unwrap_or(0);
+        (self.per_colour.len(), largest)
+    }
+}
+
 /// Graph-coloured NLGS on the GPU in f32 (the driver judges it in f64).
 pub fn solve(
     ctx: &GpuContext,
@@ -35,90 +149,8 @@ pub fn solve(
 ) -> Result<SolveReport, GpuError> {
     let start = Instant::now();
     let gp = GpuProblem::upload(ctx, p);
-    let kernels = &gp.kernels;
     let r = initial_impulses(p, r0);
-    let diag: Vec<[f32; 4]> = p.w.diag_blocks().iter().map(|d| d.map(|x| x as f32)).collect();
     let r_buf = storage(ctx, "r", &to_f32_pairs(&r));
-    let diag_buf = storage(ctx, "diag", &diag);
-    // Per colour: its range uniform (kept alive by its bind group) and its size.
-    let ranges = |c: &Colouring| -> Vec<(GpuBuffer, u32)> {
-        (0..c.n_colours())
-            .map(|k| {
-                let range = Range { start: c.start[k], count: c.start[k + 1] - c.start[k], _pad: [0; 2] };
-                (uniform(ctx, "colour", &[range]), range.count)
-            })
-            .collect()
-    };
-    let (pipeline, groups_per_colour, _order) = match &gp.matrix {
-        GpuMatrix::MatrixFree { layout, contacts, body_start, body_list, inv_mass } => {
-            // The operator's own colouring (repaired from the last step's in a simulation).
-            let colouring = match &p.w {
-                Delassus::MatrixFree(op) => op.colouring().clone(),
-                Delassus::Sparse(_) => Colouring::matrix_free(layout),
-            };
-            let order = storage(ctx, "order", &colouring.order);
-            let v = storage(ctx, "v", &vec![[0.0f32; 4]; layout.inv_mass.len()]);
-            // v = M⁻¹ Bᵀ r of the starting impulses, once.
-            let accumulate = bind(
-                ctx,
-                &kernels.body_accumulate,
-                &[
-                    ("contacts", contacts),
-                    ("body_start", body_start),
-                    ("body_list", body_list),
-                    ("inv_mass", inv_mass),
-                    ("r", &r_buf),
-                    ("v", &v),
-                ],
-            );
-            submit(ctx, "nlgs start", |pass| {
-                dispatch(pass, &kernels.body_accumulate, &accumulate, groups(layout.inv_mass.len()))
-            });
-            let per_colour: Vec<(BindGroup, u32)> = ranges(&colouring)
-                .into_iter()
-                .map(|(range, count)| {
-                    let buffers = [
-                        ("contacts", contacts),
-                        ("inv_mass", inv_mass),
-                        ("diag", &diag_buf),
-                        ("q", &gp.q),
-                        ("mu", &gp.mu),
-                        ("order", &order),
-                        ("r", &r_buf),
-                        ("v", &v),
-                        ("range", &range),
-                    ];
-                    (bind(ctx, &kernels.nlgs_colour, &buffers), count)
-                })
-                .collect();
-            (&kernels.nlgs_colour, per_colour, order)
-        }
-        GpuMatrix::Sparse { layout, row_ptr, cols, blocks } => {
-            let colouring = Colouring::block_sparse(layout);
-            let order = storage(ctx, "order", &colouring.order);
-            let per_colour: Vec<(BindGroup, u32)> = ranges(&colouring)
-                .into_iter()
-                .map(|(range, count)| {
-                    let buffers = [
-                        ("row_ptr", row_ptr),
-                        ("cols", cols),
-                        ("blocks", blocks),
-                        ("diag", &diag_buf),
-                        ("q", &gp.q),
-                        ("mu", &gp.mu),
-                        ("order", &order),
-                        ("r", &r_buf),
-                        ("range", &range),
-                    ];
-                    (bind(ctx, &kernels.nlgs_colour_bsr, &buffers), count)
-                })
-                .collect();
-            (&kernels.nlgs_colour_bsr, per_colour, order)
-        }
-    };
-    iterate(ctx, p, &gp, opts, SolverKind::Nlgs, start, r, &r_buf, 1, |pass| {
-        for (group, count) in &groups_per_colour {
-            dispatch(pass, pipeline, group, groups(*count as usize));
-        }
-    })
+    let sweep = ColouredSweep::new(ctx, p, &gp, &r_buf);
+    iterate(ctx, p, &gp, opts, SolverKind::Nlgs, start, r, &r_buf, 1, |pass| sweep.record(pass))
 }

@@ -1,11 +1,12 @@
-//! Timings of the GPU kernels without read-backs: `n` products or `n` Jacobi iterations recorded
-//! in one submit, waited for, divided by `n`. Used by `moreau bench` and the criterion benches.
+//! Timings of the GPU kernels without read-backs: `n` products, Jacobi iterations or NLGS sweeps
+//! recorded in one submit, waited for, divided by `n`. Used by `moreau bench` and the criterion benches.
 //! On the software adapter these numbers describe lavapipe, not a GPU.
 
 use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
 use super::kernels::{bind, dispatch, groups, storage, submit};
+use super::nlgs::ColouredSweep;
 use super::operator::GpuProblem;
 use crate::problem::ContactProblem;
 
@@ -46,4 +47,30 @@ pub fn kernel_times(ctx: &GpuContext, p: &ContactProblem, n: usize) -> Result<Ke
         dispatch(pass, &kernels.jacobi_update, &update, groups(nc));
     })?;
     Ok(KernelTimes { product, jacobi_iteration })
+}
+
+/// A coloured NLGS sweep of `p` on the GPU, timed from r = 0 (`n` in one submit, no check).
+pub struct SweepTimes {
+    /// Seconds per sweep (a dispatch per colour).
+    pub sweep: f64,
+    /// Colours in the sweep.
+    pub colours: usize,
+    /// Seconds per dispatch of the largest colour alone, `n` of them in one submit: a sweep far
+    /// above `colours` times this is not bound by its dispatches.
+    pub largest_colour: f64,
+}
+
+/// Times `n` coloured NLGS sweeps of `p`, and `n` dispatches of its largest colour: what a GPU
+/// solve's sweep costs before its checks, and how much of it the dispatches' count explains.
+pub fn nlgs_sweep_times(ctx: &GpuContext, p: &ContactProblem, n: usize) -> Result<SweepTimes, GpuError> {
+    let gp = GpuProblem::upload(ctx, p);
+    let r = storage(ctx, "r", &vec![[0.0f32; 2]; p.n_contacts()]);
+    let sweep = ColouredSweep::new(ctx, p, &gp, &r);
+    let (colours, largest) = sweep.colours();
+    run(ctx, 3, |pass| sweep.record(pass))?; // warm-up, as for the products
+    Ok(SweepTimes {
+        sweep: run(ctx, n, |pass| sweep.record(pass))?,
+        colours,
+        largest_colour: run(ctx, n, |pass| sweep.record_colour(pass, largest))?,
+    })
 }

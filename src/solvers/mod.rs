@@ -347,6 +347,8 @@ pub struct SolveReport {
     pub gpu_dispatches: u64,
     /// Bytes moved between CPU and GPU.
     pub gpu_bytes: u64,
+    /// How a GPU solve checked its error (all zero on the CPU).
+    pub gpu_checks: GpuChecks,
     /// The impulses.
     pub r: Vec<f64>,
     /// The velocities `u = W r + q` of the returned impulses.
@@ -369,6 +371,19 @@ pub struct SolvePart {
     pub error: f64,
     /// Why this part stopped.
     pub stop: StopReason,
+}
+
+/// How a GPU solve checked its error between its batches of iterations: each estimate is a wait
+/// for the GPU; an estimate near the tolerance reads `r` back and judges it in f64 on the CPU.
+/// What a GPU iteration costs beyond its kernels is in these (`moreau bench --scene`).
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct GpuChecks {
+    /// Error estimates on the GPU.
+    pub estimates: usize,
+    /// Of them, the ones judged in f64 on the CPU.
+    pub judged: usize,
+    /// CPU time of those judgements, read-back included (s).
+    pub judge_seconds: f64,
 }
 
 /// Why `kind` cannot solve `problem` with `opts`, if it cannot: rolling resistance is solved by

@@ -290,6 +290,7 @@ impl<'a> Monitor<'a> {
             parts: Vec::new(),
             gpu_dispatches: 0,
             gpu_bytes: 0,
+            gpu_checks: Default::default(),
             r,
             u,
             iterates: self.iterates,
