@@ -4,7 +4,7 @@
 # benchmark (target/peers/settled_pile_10k_300_*.json, from `cargo bench --bench peers`).
 #   MOREAU=target/release/moreau PEERS=target/release/deps/peers-<hash> OUT=dir bash benches/device.sh
 # BASELINE=another/moreau adds its GPU steps beside MOREAU's (a change measured side by side);
-# LATTICES=0 leaves out `moreau bench`; PEERS_DEVICES=gpu leaves out the CPU rows of the peers.
+# LATTICES=0 leaves out `moreau bench`; SWEEPS=0 the sweep anatomy (`bench --scene`); PEERS_DEVICES=gpu leaves out the CPU rows of the peers.
 # Writes OUT/device.log (every table, with the device each one ran on) and OUT/runs.tgz (each
 # run's steps.csv and summary.json, the peer table and chart).
 set -u
@@ -30,6 +30,15 @@ fi
 if [ "${LATTICES:-1}" != 0 ]; then
     say "W product and Jacobi iteration, lattices of 1k to 1M contacts"
     timeout 150 "$MOREAU" bench --sizes 1000,10000,100000,1000000 --repeats 200 2>&1 | tee -a "$log"
+fi
+
+if [ "${SWEEPS:-1}" != 0 ]; then
+    # A GPU sweep alone (kernels only, and the largest colour's dispatch) beside the solve's sweep
+    # with its checks, on the same step problem: where a GPU solve's time per sweep goes.
+    for scene in pile_10k sandbox; do
+        say "GPU sweep alone and in the solve: $scene"
+        timeout 120 "$MOREAU" bench --scene scenes/$scene.toml --steps 2 --sweeps 500 --threads-list "$THREADS" 2>&1 | tee -a "$log"
+    done
 fi
 
 # name binary: GPU steps of the sandbox and of the settled pile, one binary after the other.
