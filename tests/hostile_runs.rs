@@ -208,6 +208,15 @@ fn nothing_is_silently_accepted() {
         .output()
         .unwrap();
     refused(&o, &["lone.toml", "no contacts"]);
+    // Rolling rows: three unknowns a contact on the CPU, and no GPU rows (the GPU has none).
+    let o = moreau()
+        .args(["bench", "--steps", "1", "--sweeps", "2", "--threads-list", "1", "--scene"])
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/column_collapse_rolling.toml"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("no GPU rows: rolling resistance"), "{out}");
     let o = moreau()
         .args([
             "sweep",

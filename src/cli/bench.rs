@@ -187,8 +187,9 @@ fn scene_bench(path: &Path, a: &BenchArgs) -> Result<()> {
             }
             let p = reference.as_ref().expect("set above");
             let nc = p.n_contacts();
-            let r: Vec<f64> = vec![0.0; 2 * nc];
-            let mut u = vec![0.0; 2 * nc];
+            // Rolling rows add a third unknown per contact.
+            let r: Vec<f64> = vec![0.0; p.unknowns()];
+            let mut u = vec![0.0; p.unknowns()];
             let start = Instant::now();
             for _ in 0..a.repeats {
                 p.w.apply(&r, &mut u);
@@ -259,6 +260,10 @@ fn scene_bench(path: &Path, a: &BenchArgs) -> Result<()> {
 /// On the same problem, a GPU's NLGS sweep alone (kernels, no check) and its NLGS solve at the
 /// scene's tolerance from r = 0: the difference per sweep is what the solve's checks cost.
 fn gpu_scene_rows(p: &ContactProblem, opts: &SolverOptions, a: &BenchArgs) -> Result<()> {
+    if p.has_rolling() {
+        println!("no GPU rows: {}", crate::backend::ROLLING_ON_CPU);
+        return Ok(());
+    }
     let ctx = match GpuContext::new() {
         Ok(ctx) => ctx,
         Err(e) => {
