@@ -266,11 +266,23 @@ fn the_shipped_pile_settles_with_penetration_below_a_thousandth_of_a_diameter() 
 fn contacts_are_warm_started_from_the_previous_step() {
     let (mut sim, _) = simulation(&pile(100, 10, 1e-4, 0.0, r#""gravity", "friction", "rotation""#));
     sim.keep_problems(true);
+    // The pile after 300 steps, at the first step from there that meets its tolerance (a settled
+    // frictional pile has steps that need more than the 5,000-sweep cap).
     let mut last = None;
-    for _ in 0..300 {
-        last = Some(sim.step().unwrap());
+    for step in 1..=330 {
+        let report = sim.step().unwrap();
+        let done = step >= 300 && report.converged;
+        last = Some(report);
+        if done {
+            break;
+        }
     }
     let last = last.unwrap();
+    assert!(
+        last.converged,
+        "no step of 300 to 330 converged: the last took {} its, error {:e}",
+        last.iterations, last.error
+    );
     // Every contact that existed last step is carried; only contacts new this step start from zero.
     assert!(
         last.contacts > 50 && last.warm_started * 100 >= 98 * last.contacts,
@@ -278,14 +290,14 @@ fn contacts_are_warm_started_from_the_previous_step() {
         last.warm_started,
         last.contacts
     );
-    // The same problem solved from zero takes several times more iterations.
-    let cold = moreau::solve(sim.last_problem().unwrap(), sim.settings.solver, &sim.settings.options, None);
-    assert!(last.converged, "warm-started step: {} its, error {:e}", last.iterations, last.error);
+    // The same problem solved from zero takes several times more iterations: it has not
+    // converged after three times the warm-started step's.
+    let opts = moreau::solvers::SolverOptions { max_iter: 3 * last.iterations, ..sim.settings.options.clone() };
+    let cold = moreau::solve(sim.last_problem().unwrap(), sim.settings.solver, &opts, None);
     assert!(
-        !cold.converged || 3 * last.iterations <= cold.iterations,
-        "warm {} vs cold {} iterations",
-        last.iterations,
-        cold.iterations
+        !cold.converged,
+        "warm {} vs cold {} iterations (error {:e})",
+        last.iterations, cold.iterations, cold.error
     );
 }
 

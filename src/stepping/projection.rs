@@ -20,6 +20,10 @@ const PROJECTION_SWEEPS: (usize, usize) = (100, 1000);
 /// CPU) that five times as many go first, and each later batch doubles, within the budget.
 const PROJECTION_BATCH: (usize, usize) = (20, 100);
 
+/// Anderson mixing of the CPU's projection sweeps (the frictionless problem where it gains most:
+/// on the sandbox it ends the projection 2.5–4× sooner with 7–18× smaller overlaps left).
+const PROJECTION_ANDERSON: usize = 5;
+
 /// A new overlap below this fraction of the smaller grain's radius is left as it is: the
 /// projection runs only where the θ-update leaves a pair visibly deeper than it started.
 const PROJECTION_SLACK: f64 = 1e-4;
@@ -109,6 +113,7 @@ pub(super) fn project_positions(
             tol: 1e-12,
             max_iter: PROJECTION_BATCH.0,
             criterion: StopCriterion::Velocity,
+            anderson: PROJECTION_ANDERSON,
             ..Default::default()
         },
         true => SolverOptions { tol: 1e-12, max_iter: PROJECTION_BATCH.1, ..Default::default() },
