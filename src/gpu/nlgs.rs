@@ -10,7 +10,7 @@ use bytemuck::{Pod, Zeroable};
 use super::colouring::Colouring;
 use super::context::{GpuContext, GpuError};
 use super::driver::{initial_impulses, iterate};
-use super::kernels::{bind, dispatch, groups, storage, submit, uniform};
+use super::kernels::{bind, dispatch, groups, storage, submit, uniform, Kernel};
 use super::layout::to_f32_pairs;
 use super::operator::{GpuMatrix, GpuProblem};
 use super::pool::{BindGroup, GpuBuffer};
@@ -41,12 +41,16 @@ impl ColouredSweep {
         let kernels = &gp.kernels;
         let diag: Vec<[f32; 4]> = p.w.diag_blocks().iter().map(|d| d.map(|x| x as f32)).collect();
         let diag_buf = storage(ctx, "diag", &diag);
-        // Per colour: its range uniform (kept alive by its bind group) and its size.
-        let ranges = |c: &Colouring| -> Vec<(GpuBuffer, u32)> {
+        // Per colour: a bind group of `buffers` and the colour's range uniform (kept alive by its
+        // bind group), and the colour's size.
+        let per_colour = |kernel: &Kernel, c: &Colouring, buffers: &[(&str, &GpuBuffer)]| -> Vec<(BindGroup, u32)> {
             (0..c.n_colours())
                 .map(|k| {
                     let range = Range { start: c.start[k], count: c.start[k + 1] - c.start[k], _pad: [0; 2] };
-                    (uniform(ctx, "colour", &[range]), range.count)
+                    let range_buf = uniform(ctx, "colour", &[range]);
+                    let mut all = buffers.to_vec();
+                    all.push(("range", &range_buf));
+                    (bind(ctx, kernel, &all), range.count)
                 })
                 .collect()
         };
@@ -75,45 +79,33 @@ impl ColouredSweep {
                 submit(ctx, "nlgs start", |pass| {
                     dispatch(pass, &kernels.body_accumulate, &accumulate, groups(layout.inv_mass.len()))
                 });
-                let per_colour = ranges(&colouring)
-                    .into_iter()
-                    .map(|(range, count)| {
-                        let buffers = [
-                            ("contacts", contacts),
-                            ("inv_mass", inv_mass),
-                            ("diag", &diag_buf),
-                            ("q", &gp.q),
-                            ("mu", &gp.mu),
-                            ("order", &order),
-                            ("r", r_buf),
-                            ("v", &v),
-                            ("range", &range),
-                        ];
-                        (bind(ctx, &kernels.nlgs_colour, &buffers), count)
-                    })
-                    .collect();
+                let buffers = [
+                    ("contacts", contacts),
+                    ("inv_mass", inv_mass),
+                    ("diag", &diag_buf),
+                    ("q", &gp.q),
+                    ("mu", &gp.mu),
+                    ("order", &order),
+                    ("r", r_buf),
+                    ("v", &v),
+                ];
+                let per_colour = per_colour(&kernels.nlgs_colour, &colouring, &buffers);
                 Self { kernels: kernels.clone(), matrix_free: true, per_colour, _buffers: vec![diag_buf, order, v] }
             }
             GpuMatrix::Sparse { layout, row_ptr, cols, blocks } => {
                 let colouring = Colouring::block_sparse(layout);
                 let order = storage(ctx, "order", &colouring.order);
-                let per_colour = ranges(&colouring)
-                    .into_iter()
-                    .map(|(range, count)| {
-                        let buffers = [
-                            ("row_ptr", row_ptr),
-                            ("cols", cols),
-                            ("blocks", blocks),
-                            ("diag", &diag_buf),
-                            ("q", &gp.q),
-                            ("mu", &gp.mu),
-                            ("order", &order),
-                            ("r", r_buf),
-                            ("range", &range),
-                        ];
-                        (bind(ctx, &kernels.nlgs_colour_bsr, &buffers), count)
-                    })
-                    .collect();
+                let buffers = [
+                    ("row_ptr", row_ptr),
+                    ("cols", cols),
+                    ("blocks", blocks),
+                    ("diag", &diag_buf),
+                    ("q", &gp.q),
+                    ("mu", &gp.mu),
+                    ("order", &order),
+                    ("r", r_buf),
+                ];
+                let per_colour = per_colour(&kernels.nlgs_colour_bsr, &colouring, &buffers);
                 Self { kernels: kernels.clone(), matrix_free: false, per_colour, _buffers: vec![diag_buf, order] }
             }
         }
