@@ -252,6 +252,7 @@ fn a_gpu_solve_counts_its_checks_and_the_scene_bench_times_its_sweep() {
     assert!(gpu.notes.iter().any(|n| n.starts_with(&said)), "{:?}", gpu.notes);
     let cpu = solve(&p, SolverKind::Nlgs, &opts, None);
     assert_eq!((cpu.gpu_checks.estimates, cpu.gpu_checks.judged), (0, 0));
+    assert_eq!((gpu.gpu_iterations(), cpu.gpu_iterations()), (gpu.iterations, 0));
 
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/pile.toml");
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_moreau"))
@@ -264,8 +265,11 @@ fn a_gpu_solve_counts_its_checks_and_the_scene_bench_times_its_sweep() {
     let row = out.lines().skip_while(|l| !l.contains("NLGS sweep ms (kernels only)")).nth(2).expect("a GPU row");
     let cells: Vec<&str> = row.split('|').map(str::trim).collect();
     let (sweep_ms, colours, dispatch_ms): (f64, usize, f64) =
-        (cells[2].parse().unwrap(), cells[3].parse().unwrap(), cells[4].parse().unwrap());
+        (cells[3].parse().unwrap(), cells[4].parse().unwrap(), cells[5].parse().unwrap());
     assert!(sweep_ms > 0.0 && sweep_ms.is_finite() && dispatch_ms > 0.0 && colours >= 2, "{row}");
+    // pile.toml mixes over 5 sweeps: a second row solves with the mixer.
+    let mixed = out.lines().skip_while(|l| !l.contains("NLGS sweep ms (kernels only)")).nth(3).expect("a mixed row");
+    assert!(mixed.starts_with("| 5 |") && cells[1] == "0", "{row}\n{mixed}");
 }
 
 #[test]
@@ -320,7 +324,10 @@ fn the_position_projection_sweeps_on_the_gpu_and_separates_as_on_the_cpu() {
         );
         assert!(r.projection_seconds > 0.0);
     }
-    assert!(cpu.iter().all(|r| r.gpu_dispatches == 0));
+    assert!(cpu.iter().all(|r| r.gpu_dispatches == 0 && r.gpu_iterations == 0));
+    // Four sweeps a step meet no plateau: every iteration of a GPU step ran on the GPU.
+    let split: Vec<(usize, usize)> = gpu.iter().map(|r| (r.gpu_iterations, r.iterations)).collect();
+    assert!(split.iter().all(|(g, i)| g == i) && split.iter().any(|&(g, _)| g > 0), "{split:?}");
     let (c, g) = (worst(&cpu), worst(&gpu));
     assert!(c > 0.0 && g <= 1.25 * c, "largest overlap: GPU {g:.3e} m, CPU {c:.3e} m");
 }
@@ -721,4 +728,171 @@ fn a_dispatch_past_the_workgroup_limit_covers_every_contact() {
     cpu::jacobi_update::jacobi_update(&u, &mu, &step, &mut cpu_r);
     assert_close(gpu_r.as_flattened(), cpu_r.as_flattened(), "jacobi_update on a 2D grid");
     assert!(gpu_r[nc - 1] != [0.0, 0.0] || cpu_r[nc - 1] == [0.0, 0.0], "the last contact was updated");
+}
+
+/// The three Anderson stages against their mirrors, after every "sweep" of a contraction
+/// landed on the cones (3,000 contacts: three partials; a history of 3 slots, so the ring
+/// wraps), with a kick at sweep 12 whose residual the mixer must refuse (a restart). Each
+/// stage runs on the mirror's inputs, so differences cannot compound; the sequence of actions
+/// must have recorded, mixed and restarted.
+#[test]
+fn anderson_stages_match_their_mirrors() {
+    use moreau::gpu::cpu::anderson_dots::{anderson_dots, n_groups, n_sums};
+    use moreau::gpu::cpu::anderson_fit::{anderson_fit, Mixer, MIX, RECORD, RESTART};
+    use moreau::gpu::cpu::anderson_mix::{anderson_mix, MixerVectors};
+    use moreau::gpu::kernels::Kernels;
+    let Some(ctx) = common::gpu_context() else { return };
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(5);
+    let (nc, depth) = (3000, 3);
+    let mu: Vec<f32> = (0..nc).map(|_| rng.gen_range(0.0..0.8)).collect();
+    let target: Vec<[f32; 2]> = (0..nc).map(|_| [rng.gen_range(-0.5..1.0), rng.gen_range(-0.5..0.5)]).collect();
+    let b = |x: &[[f32; 2]]| bytemuck::cast_slice::<[f32; 2], u8>(x).to_vec();
+    let pairs = |bytes: &[u8]| bytemuck::cast_slice::<u8, [f32; 2]>(bytes).to_vec();
+    let mut x = MixerVectors {
+        r: vec![[0.0; 2]; nc],
+        before: vec![[0.0; 2]; nc],
+        last_residual: vec![[0.0; 2]; nc],
+        last_impulse: vec![[0.0; 2]; nc],
+        d_residual: vec![[0.0; 2]; depth * nc],
+        d_impulse: vec![[0.0; 2]; depth * nc],
+    };
+    let mut mixer = Mixer::new();
+    let mut actions = Vec::new();
+    for sweep in 0..24 {
+        // The "sweep": r ← Π(0.9 r + 0.1 target), kicked once.
+        let kick = if sweep == 12 { 50.0 } else { 1.0 };
+        for a in 0..nc {
+            let y = [0.9 * x.before[a][0] + 0.1 * kick * target[a][0], 0.9 * x.before[a][1] + 0.1 * target[a][1]];
+            x.r[a] = cpu::single_contact::project_cone(y, mu[a]);
+        }
+        let (r, before, last) = (x.r.as_flattened(), x.before.as_flattened(), x.last_residual.as_flattened());
+        let parts = anderson_dots(r, before, last, x.d_residual.as_flattened(), depth);
+        let groups = n_groups(2 * nc);
+        assert_eq!(parts.len(), groups * n_sums(depth));
+        let shape = [2 * nc as u32, depth as u32, 0, 0];
+        let out = stages::run_raw(
+            &ctx,
+            |k: &Kernels| &k.anderson_dots,
+            &[&b(&x.r), &b(&x.before), &b(&x.last_residual), &b(&x.d_residual), &vec![0u8; 4 * parts.len()]],
+            &[bytemuck::cast_slice(&shape)],
+            groups as u32,
+            &[4],
+        )
+        .unwrap();
+        assert_close(&floats(&out[0]), &parts, &format!("anderson_dots, sweep {sweep}"));
+
+        let before_fit = mixer;
+        let job = [groups as u32, depth as u32, 7, 2];
+        let args = anderson_fit(&parts, groups, depth, &mut mixer, [7, 2]);
+        let out = stages::run_raw(
+            &ctx,
+            |k: &Kernels| &k.anderson_fit,
+            &[bytemuck::cast_slice(&parts), bytemuck::bytes_of(&before_fit), &[0u8; 12]],
+            &[bytemuck::cast_slice(&job)],
+            1,
+            &[1, 2],
+        )
+        .unwrap();
+        let gpu: Mixer = bytemuck::pod_read_unaligned(&out[0]);
+        let what = format!("anderson_fit, sweep {sweep}");
+        let exact = |m: &Mixer| (m.count, m.has_last, m.mixed, m.restarts, m.action, m.slot, m.order);
+        assert_eq!(exact(&gpu), exact(&mixer), "{what}");
+        assert_eq!(bytemuck::cast_slice::<u8, u32>(&out[1]), args, "{what}: the rebuild's dispatch");
+        // γ solves a small system in f32: its rounding, relative to the largest coefficient.
+        let scale = mixer.gamma.iter().fold(1.0f32, |m, g| m.max(g.abs()));
+        for (g, c) in gpu.gamma.iter().zip(&mixer.gamma) {
+            assert!((g - c).abs() <= 1e-3 * scale, "{what}: γ {:?} vs {:?}", gpu.gamma, mixer.gamma);
+        }
+        assert_close(&gpu.gram, &mixer.gram, &what);
+        assert_close(&[gpu.reference], &[mixer.reference], &what);
+        actions.push(mixer.action);
+
+        let before_mix = MixerVectors {
+            r: x.r.clone(),
+            before: x.before.clone(),
+            last_residual: x.last_residual.clone(),
+            last_impulse: x.last_impulse.clone(),
+            d_residual: x.d_residual.clone(),
+            d_impulse: x.d_impulse.clone(),
+        };
+        anderson_mix(&mut x, &mu, &mixer);
+        let out = stages::run_raw(
+            &ctx,
+            |k: &Kernels| &k.anderson_mix,
+            &[
+                &b(&before_mix.r),
+                &b(&before_mix.before),
+                &b(&before_mix.last_residual),
+                &b(&before_mix.last_impulse),
+                &b(&before_mix.d_residual),
+                &b(&before_mix.d_impulse),
+                bytemuck::cast_slice(&mu),
+                bytemuck::bytes_of(&mixer),
+            ],
+            &[],
+            moreau::gpu::kernels::groups(nc),
+            &[0, 1, 2, 3, 4, 5],
+        )
+        .unwrap();
+        let mirrors = [&x.r, &x.before, &x.last_residual, &x.last_impulse, &x.d_residual, &x.d_impulse];
+        for (k, (gpu, cpu)) in out.iter().zip(mirrors).enumerate() {
+            assert_close(pairs(gpu).as_flattened(), cpu.as_flattened(), &format!("anderson_mix {k}, sweep {sweep}"));
+        }
+    }
+    eprintln!("actions: {actions:?}");
+    for action in [RECORD, MIX, RESTART] {
+        assert!(actions.contains(&action), "action {action} never taken: {actions:?}");
+    }
+}
+
+/// NLGS on the GPU mixes its sweeps when asked (`anderson = 5`), as the CPU does: on a
+/// matrix-free pile step and on explicit `W`s (Siconos files) it reaches the tolerance in fewer
+/// sweeps than the plain GPU sweeps, judged in f64, and says so; a history deeper than the
+/// kernels keep is cut to theirs and said.
+#[test]
+fn the_gpu_mixes_its_sweeps_as_the_cpu_does() {
+    let Some(ctx) = common::gpu_context() else { return };
+    let mut cases: Vec<(String, ContactProblem)> = vec![
+        ("pile step 60".into(), pile_problem(r#""gravity", "friction", "rotation""#)),
+        ("lattice 30×15".into(), lattice_packing(30, 15, 0.5, 2)),
+    ];
+    if let Some(path) = common::shared_data("fc2d_granularflowonwall_02020_00213.dat") {
+        cases.push(("Siconos 2020".into(), moreau::io::siconos::read_fc2d(&path).unwrap()));
+    }
+    for (name, p) in &cases {
+        let run = |anderson| {
+            let opts = SolverOptions { tol: 1e-5, max_iter: 50_000, anderson, ..SolverOptions::default() };
+            moreau::gpu::solve(&ctx, p, SolverKind::Nlgs, &opts, None).unwrap()
+        };
+        let (plain, mixed) = (run(0), run(5));
+        let cpu = solve(
+            p,
+            SolverKind::Nlgs,
+            &SolverOptions { tol: 1e-5, max_iter: 50_000, anderson: 5, ..Default::default() },
+            None,
+        );
+        eprintln!(
+            "{name}: GPU plain {} sweeps, GPU Anderson {} ({:.2e}; {:?}), CPU Anderson {}",
+            plain.iterations, mixed.iterations, mixed.error, mixed.notes, cpu.iterations
+        );
+        assert!(plain.converged, "{name}: plain {}", plain.stop_reason);
+        assert!(mixed.converged && mixed.judged_error <= 1e-5, "{name}: mixed {}", mixed.stop_reason);
+        common::check_solution(p, &mixed.r, 1e-4).unwrap_or_else(|e| panic!("{name}: {e}"));
+        common::assert_mixing_paid(
+            name,
+            &mixed,
+            plain.iterations,
+            2,
+            "Anderson acceleration over 5 sweeps (on the GPU)",
+        );
+    }
+    let deep = SolverOptions { tol: 1e-5, max_iter: 50_000, anderson: 12, ..SolverOptions::default() };
+    let said = moreau::backend::gpu_omits(SolverKind::Nlgs, &deep).expect("a history past 8 is cut");
+    assert!(said.contains("at most 8") && said.contains("anderson = 12"), "{said}");
+    let r = moreau::gpu::solve(&ctx, &cases[1].1, SolverKind::Nlgs, &deep, None).unwrap();
+    assert!(
+        r.converged && r.notes.iter().any(|n| n.starts_with("Anderson acceleration over 8 sweeps")),
+        "{:?}",
+        r.notes
+    );
 }

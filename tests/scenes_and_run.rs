@@ -242,9 +242,18 @@ fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
     let csv = std::fs::read_to_string(out.join("steps.csv")).unwrap();
     let mut lines = csv.lines();
     let header = lines.next().unwrap();
-    for col in
-        ["step", "time", "contacts", "iterations", "error", "converged", "max_penetration", "kinetic_energy", "seconds"]
-    {
+    for col in [
+        "step",
+        "time",
+        "contacts",
+        "iterations",
+        "gpu_iterations",
+        "error",
+        "converged",
+        "max_penetration",
+        "kinetic_energy",
+        "seconds",
+    ] {
         assert!(header.split(',').any(|c| c == col), "steps.csv lacks {col}: {header}");
     }
     assert_eq!(lines.count(), 40);

@@ -113,11 +113,12 @@ pub fn gpu_refusal(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
     None
 }
 
-/// What a GPU solve of `kind` with `opts` leaves out, if anything: Anderson acceleration mixes
-/// on the CPU only, so the GPU's sweeps run without it (a CPU finish keeps it).
+/// What a GPU solve of `kind` with `opts` leaves out, if anything: the GPU's Anderson mixer
+/// keeps at most [`crate::gpu::anderson::MAX_DEPTH`] sweeps (a CPU finish keeps them all).
 pub fn gpu_omits(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
-    (kind == SolverKind::Nlgs && opts.anderson > 0).then(|| {
-        format!("Anderson acceleration (anderson = {}) is CPU-only: the GPU's sweeps run without it", opts.anderson)
+    let most = crate::gpu::anderson::MAX_DEPTH;
+    (kind == SolverKind::Nlgs && opts.anderson > most).then(|| {
+        format!("the GPU's Anderson mixer keeps at most {most} sweeps (anderson = {}): it mixes {most}", opts.anderson)
     })
 }
 
@@ -369,7 +370,7 @@ fn solve_mixed(
     opts: &SolverOptions,
     r0: Option<&[f64]>,
 ) -> Result<SolveReport, BackendError> {
-    let gpu_opts = SolverOptions { tol: opts.tol.max(F32_FLOOR), anderson: 0, ..opts.clone() };
+    let gpu_opts = SolverOptions { tol: opts.tol.max(F32_FLOOR), ..opts.clone() };
     let mut gpu = crate::gpu::solve(ctx, problem, kind, &gpu_opts, r0)?;
     gpu.notes.extend(gpu_omits(kind, opts));
     let finish_on_cpu = !gpu.converged || gpu.judged_error > opts.tol;

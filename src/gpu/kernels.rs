@@ -105,20 +105,27 @@ pub struct Kernels {
     pub natural_map: Kernel,
     /// The `velocity_residual` kernel.
     pub velocity_residual: Kernel,
+    /// The `anderson_dots` kernel.
+    pub anderson_dots: Kernel,
+    /// The `anderson_fit` kernel.
+    pub anderson_fit: Kernel,
+    /// The `anderson_mix` kernel.
+    pub anderson_mix: Kernel,
 }
 
 /// The shared WGSL a kernel pulls in with `#import name` lines: written once, composed at load.
-const MODULES: [(&str, &str); 5] = [
+const MODULES: [(&str, &str); 6] = [
     ("grid", include_str!("../../shaders/shared/grid.wgsl")),
     ("contact", include_str!("../../shaders/shared/contact.wgsl")),
     ("range", include_str!("../../shaders/shared/range.wgsl")),
     ("tree_sum", include_str!("../../shaders/shared/tree_sum.wgsl")),
     ("single_contact", include_str!("../../shaders/shared/single_contact.wgsl")),
+    ("mixer", include_str!("../../shaders/shared/mixer.wgsl")),
 ];
 
 /// Every kernel: name, WGSL (before composition), and whether it is specialised by the
 /// rotation and friction constants.
-pub const KERNELS: [(&str, &str, bool); 19] = [
+pub const KERNELS: [(&str, &str, bool); 22] = [
     ("body_accumulate", include_str!("../../shaders/body_accumulate.wgsl"), true),
     ("contact_gather", include_str!("../../shaders/contact_gather.wgsl"), true),
     ("bsr_product", include_str!("../../shaders/bsr_product.wgsl"), false),
@@ -138,6 +145,9 @@ pub const KERNELS: [(&str, &str, bool); 19] = [
     ("apgd_rebox", include_str!("../../shaders/apgd_rebox.wgsl"), false),
     ("natural_map", include_str!("../../shaders/natural_map.wgsl"), false),
     ("velocity_residual", include_str!("../../shaders/velocity_residual.wgsl"), false),
+    ("anderson_dots", include_str!("../../shaders/anderson_dots.wgsl"), false),
+    ("anderson_fit", include_str!("../../shaders/anderson_fit.wgsl"), false),
+    ("anderson_mix", include_str!("../../shaders/anderson_mix.wgsl"), false),
 ];
 
 /// `source` with each `#import name` line replaced by that shared module (a module imported
@@ -196,6 +206,9 @@ impl Kernels {
             apgd_rebox: k("apgd_rebox"),
             natural_map: k("natural_map"),
             velocity_residual: k("velocity_residual"),
+            anderson_dots: k("anderson_dots"),
+            anderson_fit: k("anderson_fit"),
+            anderson_mix: k("anderson_mix"),
         }
     }
 }
@@ -208,6 +221,12 @@ const STORAGE: wgpu::BufferUsages =
 /// context's pool.
 pub fn storage<T: bytemuck::Pod>(ctx: &GpuContext, label: &str, data: &[T]) -> GpuBuffer {
     filled(ctx, label, STORAGE, bytemuck::cast_slice(data))
+}
+
+/// A storage buffer that a kernel writes and a later dispatch reads its workgroup counts from
+/// ([`dispatch_indirect`]).
+pub fn indirect_args(ctx: &GpuContext, label: &str, data: &[u32; 3]) -> GpuBuffer {
+    filled(ctx, label, STORAGE | wgpu::BufferUsages::INDIRECT, bytemuck::cast_slice(data))
 }
 
 /// A small uniform buffer (colour ranges), from the context's pool.
@@ -287,6 +306,19 @@ pub fn dispatch(
     traffic::dispatched();
 }
 
+/// Records one dispatch of `pipeline` whose workgroup counts a kernel wrote into `args`.
+pub fn dispatch_indirect(
+    pass: &mut wgpu::ComputePass,
+    pipeline: &wgpu::ComputePipeline,
+    group: &wgpu::BindGroup,
+    args: &wgpu::Buffer,
+) {
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, group, &[]);
+    pass.dispatch_workgroups_indirect(args, 0);
+    traffic::dispatched();
+}
+
 /// The most workgroups a dispatch may have along one dimension (WebGPU's default limit).
 pub const MAX_GROUPS_PER_DIMENSION: u32 = 65_535;
 
@@ -338,8 +370,14 @@ mod tests {
         for (name, source, _) in KERNELS {
             let wgsl = compose(name, source).unwrap();
             assert!(!wgsl.contains("#import"), "{name}: an import is left");
-            for item in ["struct Contact", "struct Range", "fn element_index", "fn tree_sum", "fn solve_single_contact"]
-            {
+            for item in [
+                "struct Contact",
+                "struct Range",
+                "struct Mixer",
+                "fn element_index",
+                "fn tree_sum",
+                "fn solve_single_contact",
+            ] {
                 assert!(wgsl.matches(item).count() <= 1, "{name}: {item} twice");
             }
             let module =
@@ -350,7 +388,7 @@ mod tests {
         }
         // Shared items live in shaders/shared/ only.
         for (name, source, _) in KERNELS {
-            for item in ["struct Contact", "struct Range", "var<workgroup> tree", "override ROTATION"] {
+            for item in ["struct Contact", "struct Range", "struct Mixer", "var<workgroup> tree", "override ROTATION"] {
                 assert!(!source.contains(item), "shaders/{name}.wgsl writes {item} itself");
             }
         }

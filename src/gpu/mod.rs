@@ -2,6 +2,7 @@
 //! mirror of the same name in [`cpu`]. Iterations stay on the GPU; the error of a result is
 //! always evaluated in f64 on the CPU with the core's measure.
 
+pub mod anderson;
 pub mod apgd;
 pub mod colouring;
 pub mod context;

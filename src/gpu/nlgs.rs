@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 
+use super::anderson::{GpuAnderson, MAX_DEPTH};
 use super::colouring::Colouring;
 use super::context::{GpuContext, GpuError};
 use super::driver::{initial_impulses, iterate};
@@ -32,6 +33,8 @@ pub struct ColouredSweep {
     kernels: std::sync::Arc<super::kernels::Kernels>,
     matrix_free: bool,
     per_colour: Vec<(BindGroup, u32)>,
+    /// Matrix-free: `v = M⁻¹ Bᵀ r` from the impulses (`body_accumulate`) and the bodies.
+    velocities: Option<(BindGroup, usize)>,
     _buffers: Vec<GpuBuffer>,
 }
 
@@ -90,7 +93,13 @@ impl ColouredSweep {
                     ("v", &v),
                 ];
                 let per_colour = per_colour(&kernels.nlgs_colour, &colouring, &buffers);
-                Self { kernels: kernels.clone(), matrix_free: true, per_colour, _buffers: vec![diag_buf, order, v] }
+                Self {
+                    kernels: kernels.clone(),
+                    matrix_free: true,
+                    per_colour,
+                    velocities: Some((accumulate, layout.inv_mass.len())),
+                    _buffers: vec![diag_buf, order, v],
+                }
             }
             GpuMatrix::Sparse { layout, row_ptr, cols, blocks } => {
                 let colouring = Colouring::block_sparse(layout);
@@ -106,7 +115,13 @@ impl ColouredSweep {
                     ("r", r_buf),
                 ];
                 let per_colour = per_colour(&kernels.nlgs_colour_bsr, &colouring, &buffers);
-                Self { kernels: kernels.clone(), matrix_free: false, per_colour, _buffers: vec![diag_buf, order] }
+                Self {
+                    kernels: kernels.clone(),
+                    matrix_free: false,
+                    per_colour,
+                    velocities: None,
+                    _buffers: vec![diag_buf, order],
+                }
             }
         }
     }
@@ -123,6 +138,12 @@ impl ColouredSweep {
         let pipeline = if self.matrix_free { &self.kernels.nlgs_colour } else { &self.kernels.nlgs_colour_bsr };
         let (group, count) = &self.per_colour[k];
         dispatch(pass, pipeline, group, groups(*count as usize));
+    }
+
+    /// Matrix-free: the bind group that rebuilds the body velocities from the impulses, and the
+    /// bodies.
+    pub fn velocities(&self) -> Option<(&BindGroup, usize)> {
+        self.velocities.as_ref().map(|(group, bodies)| (group, *bodies))
     }
 
     /// Colours, and the largest one (most contacts).
@@ -142,7 +163,21 @@ pub fn solve(
     let start = Instant::now();
     let gp = GpuProblem::upload(ctx, p);
     let r = initial_impulses(p, r0);
-    let r_buf = storage(ctx, "r", &to_f32_pairs(&r));
+    let r32 = to_f32_pairs(&r);
+    let r_buf = storage(ctx, "r", &r32);
     let sweep = ColouredSweep::new(ctx, p, &gp, &r_buf);
-    iterate(ctx, p, &gp, opts, SolverKind::Nlgs, start, r, &r_buf, 1, |pass| sweep.record(pass))
+    // Deeper histories are cut to the kernels' (backend::gpu_omits says so).
+    let depth = opts.anderson.min(MAX_DEPTH);
+    let mixer = (depth > 0).then(|| GpuAnderson::new(ctx, &gp, &r32, &r_buf, depth, sweep.velocities()));
+    let mut report = iterate(ctx, p, &gp, opts, SolverKind::Nlgs, start, r, &r_buf, 1, |pass| {
+        sweep.record(pass);
+        if let Some(mixer) = &mixer {
+            mixer.record(pass);
+        }
+    })?;
+    if let Some(mixer) = &mixer {
+        let restarts = mixer.restarts(ctx).map_err(GpuError::Runtime)?;
+        report.notes.push(format!("Anderson acceleration over {depth} sweeps (on the GPU), {restarts} restarts"));
+    }
+    Ok(report)
 }

@@ -115,6 +115,7 @@ impl Drop for Held {
 }
 
 /// A bind group with the buffers it binds: none goes back to the pool while the group lives.
+#[derive(Clone)]
 pub struct BindGroup {
     group: wgpu::BindGroup,
     _buffers: Vec<GpuBuffer>,

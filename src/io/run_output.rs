@@ -18,6 +18,7 @@ struct Row {
     contacts: usize,
     warm_started: usize,
     iterations: usize,
+    gpu_iterations: usize,
     error: f64,
     converged: bool,
     stop: &'static str,
@@ -116,6 +117,11 @@ pub struct RunSummary {
     pub max_iterations: usize,
     /// Steps whose solve ran to max_iter.
     pub max_iter_steps: usize,
+    /// Iterations of all steps, and those of them run on a GPU (the rest of a GPU run's: f64
+    /// finishes on the CPU).
+    pub total_iterations: usize,
+    /// See `total_iterations`.
+    pub gpu_iterations: usize,
     /// Every step's iterations, for the percentiles.
     #[serde(skip)]
     pub iterations: Vec<usize>,
@@ -158,6 +164,8 @@ impl RunSummary {
         self.mean_iterations += (r.iterations as f64 - self.mean_iterations) / self.steps as f64;
         self.max_iterations = self.max_iterations.max(r.iterations);
         self.iterations.push(r.iterations);
+        self.total_iterations += r.iterations;
+        self.gpu_iterations += r.gpu_iterations;
         if r.stop == StopReason::MaxIter {
             self.max_iter_steps += 1;
         }
@@ -185,7 +193,7 @@ impl RunSummary {
     /// One line for the end of a run.
     pub fn line(&self) -> String {
         format!(
-            "{}: {} steps in {:.3} s ({:.1} steps/s; solve {:.0} %, projection {:.0} %), device {} ({} threads), {} tol {:.0e}: {}/{} steps converged (max error {:.2e}), iterations mean {:.1} median {} p95 {} max {} ({} at max_iter), contacts mean {:.0}, max penetration {:.2e} of the mean diameter, final kinetic energy {:.3e}",
+            "{}: {} steps in {:.3} s ({:.1} steps/s; solve {:.0} %, projection {:.0} %), device {} ({} threads), {} tol {:.0e}: {}/{} steps converged (max error {:.2e}), iterations mean {:.1} median {} p95 {} max {} ({} at max_iter{}), contacts mean {:.0}, max penetration {:.2e} of the mean diameter, final kinetic energy {:.3e}",
             self.scene,
             self.steps,
             self.seconds,
@@ -204,6 +212,14 @@ impl RunSummary {
             self.p95_iterations,
             self.max_iterations,
             self.max_iter_steps,
+            match self.gpu_iterations {
+                0 => String::new(),
+                gpu if gpu == self.total_iterations => "; all on the GPU".to_string(),
+                gpu => format!(
+                    "; {:.0} % on the GPU, the rest f64 finishes on the CPU",
+                    100.0 * gpu as f64 / self.total_iterations as f64
+                ),
+            },
             self.mean_contacts,
             self.max_penetration_per_diameter,
             self.final_kinetic_energy
@@ -297,6 +313,7 @@ impl RunOutput {
             contacts: r.contacts,
             warm_started: r.warm_started,
             iterations: r.iterations,
+            gpu_iterations: r.gpu_iterations,
             error: r.error,
             converged: r.converged,
             stop: r.stop.name(),

@@ -358,6 +358,18 @@ pub struct SolveReport {
     pub iterates: Vec<Vec<f64>>,
 }
 
+impl SolveReport {
+    /// Iterations run on a GPU: its part of a mixed-precision solve, all of a GPU solve (which
+    /// estimated its error there), none of a CPU solve.
+    pub fn gpu_iterations(&self) -> usize {
+        match self.parts.is_empty() {
+            false => self.parts.iter().filter(|p| p.device == "gpu").map(|p| p.iterations).sum(),
+            true if self.gpu_checks.estimates > 0 => self.iterations,
+            true => 0,
+        }
+    }
+}
+
 /// One device's share of a solve split across devices.
 #[derive(Clone, Debug, Serialize)]
 pub struct SolvePart {

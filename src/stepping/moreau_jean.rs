@@ -388,6 +388,7 @@ fn apply(
         contacts: detected.len(),
         warm_started: assembled.warm_started,
         iterations: 0,
+        gpu_iterations: 0,
         error: 0.0,
         converged: true,
         stop: StopReason::Converged,
@@ -409,6 +410,7 @@ fn apply(
     if let (Some(local), Some((solved, seconds))) = (&problem, solved) {
         report.solve_seconds = seconds;
         report.iterations = solved.iterations;
+        report.gpu_iterations = solved.gpu_iterations();
         report.error = solved.judged_error;
         report.converged = solved.converged;
         report.stop = solved.stop;

@@ -20,7 +20,7 @@ const PROJECTION_SWEEPS: (usize, usize) = (100, 1000);
 /// CPU) that five times as many go first, and each later batch doubles, within the budget.
 const PROJECTION_BATCH: (usize, usize) = (20, 100);
 
-/// Anderson mixing of the CPU's projection sweeps (the frictionless problem where it gains most:
+/// Anderson mixing of the projection sweeps, on either device (the frictionless problem where it gains most:
 /// on the sandbox it ends the projection 2.5–4× sooner with 7–18× smaller overlaps left).
 const PROJECTION_ANDERSON: usize = 5;
 
@@ -116,7 +116,12 @@ pub(super) fn project_positions(
             anderson: PROJECTION_ANDERSON,
             ..Default::default()
         },
-        true => SolverOptions { tol: 1e-12, max_iter: PROJECTION_BATCH.1, ..Default::default() },
+        true => SolverOptions {
+            tol: 1e-12,
+            max_iter: PROJECTION_BATCH.1,
+            anderson: PROJECTION_ANDERSON,
+            ..Default::default()
+        },
     };
     let budget = (solve_iterations / 4).clamp(PROJECTION_SWEEPS.0, PROJECTION_SWEEPS.1);
     let (mut p, mut sweeps, mut traffic) = (vec![0.0; 2 * contacts.len()], 0, (0, 0));

@@ -108,6 +108,8 @@ pub struct StepReport {
     pub warm_started: usize,
     /// Solver iterations.
     pub iterations: usize,
+    /// Of them, those run on a GPU (the rest, on a GPU step, are the f64 finish on the CPU).
+    pub gpu_iterations: usize,
     /// The solve's f64 error in the measure its stopping test judged (the velocity measure
     /// under `criterion = velocity`, else the natural map's), to be read against `tol`.
     pub error: f64,

@@ -64,3 +64,11 @@ pub fn gpu_context() -> Option<GpuContext> {
         }
     }
 }
+
+/// Anderson mixing paid: `mixed` took at most `1 / factor` of `plain`'s iterations and its
+/// notes say it mixed (`note` starts the line).
+#[allow(dead_code)]
+pub fn assert_mixing_paid(what: &str, mixed: &moreau::solvers::SolveReport, plain: usize, factor: usize, note: &str) {
+    assert!(factor * mixed.iterations <= plain, "{what}: {} mixed against {plain} plain", mixed.iterations);
+    assert!(mixed.notes.iter().any(|n| n.starts_with(note)), "{what}: {:?}", mixed.notes);
+}

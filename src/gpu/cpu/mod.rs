@@ -1,6 +1,9 @@
 //! CPU mirrors of the WGSL kernels, one file per kernel and named the same (as vello does), in
 //! f32 with the kernels' order of operations, so that every GPU stage can be checked on its own.
 
+pub mod anderson_dots;
+pub mod anderson_fit;
+pub mod anderson_mix;
 pub mod apgd_momentum;
 pub mod apgd_rebox;
 pub mod apgd_scalars;

@@ -1,6 +1,7 @@
 //! Mirror of `shaders/shared/single_contact.wgsl`: the exact single-contact solve in f32.
 
-pub(crate) fn project_cone(x: [f32; 2], m: f32) -> [f32; 2] {
+/// The projection on the cone of friction `m`, in f32 as the kernels do it.
+pub fn project_cone(x: [f32; 2], m: f32) -> [f32; 2] {
     if x[0] >= 0.0 && x[1].abs() <= m * x[0] {
         x
     } else if m * x[1].abs() <= -x[0] {
