@@ -896,3 +896,20 @@ fn the_gpu_mixes_its_sweeps_as_the_cpu_does() {
         r.notes
     );
 }
+
+/// Several buffers read back through one staging buffer and one wait come back as each read
+/// alone does, whatever their lengths (odd counts: each part is padded to wgpu's 4 bytes).
+#[test]
+fn buffers_read_back_together_are_each_read_back_alone() {
+    use moreau::gpu::kernels::{read_back, read_back_each, storage};
+    let Some(ctx) = common::gpu_context() else { return };
+    let a: Vec<u32> = (0..3).map(|k| 7 + k).collect();
+    let b: Vec<u32> = (0..1025).map(|k| 3 * k + 1).collect();
+    let (ga, gb) = (storage(&ctx, "a", &a), storage(&ctx, "b", &b));
+    let [ra, rb] = read_back_each::<u32, 2>(&ctx, [(&ga, a.len()), (&gb, b.len())]).unwrap();
+    assert_eq!((ra, rb), (a.clone(), b.clone()));
+    assert_eq!(read_back::<u32>(&ctx, &gb, b.len()).unwrap(), b);
+    let bytes: Vec<u8> = (0..8).collect();
+    let [odd] = read_back_each::<u8, 1>(&ctx, [(&storage(&ctx, "bytes", &bytes), 5)]).unwrap();
+    assert_eq!(odd, &bytes[..5]);
+}

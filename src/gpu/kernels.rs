@@ -340,14 +340,32 @@ pub fn groups(n: usize) -> u32 {
 
 /// Copies `buffer` back to the CPU as `T`s.
 pub fn read_back<T: bytemuck::Pod>(ctx: &GpuContext, buffer: &wgpu::Buffer, count: usize) -> Result<Vec<T>, String> {
-    let size = (count * std::mem::size_of::<T>()).max(4) as u64;
+    let [out] = read_back_each::<T, 1>(ctx, [(buffer, count)])?;
+    Ok(out)
+}
+
+/// Copies several buffers back to the CPU as `T`s (`count` of each) through one staging buffer
+/// and one wait: each wait for the GPU costs far more than the bytes it brings.
+pub fn read_back_each<T: bytemuck::Pod, const N: usize>(
+    ctx: &GpuContext,
+    buffers: [(&wgpu::Buffer, usize); N],
+) -> Result<[Vec<T>; N], String> {
+    let item = std::mem::size_of::<T>();
+    // Each part at a 4-byte multiple (wgpu's copy alignment), at least 4 bytes.
+    let sizes = buffers.map(|(_, count)| ((count * item).max(4) as u64).next_multiple_of(4));
+    let total: u64 = sizes.iter().sum();
     let staging =
-        ctx.pool.take(&ctx.device, "read back", wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST, size);
+        ctx.pool.take(&ctx.device, "read back", wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST, total);
     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
-    traffic::downloaded(size as usize);
+    let mut offset = 0;
+    for ((buffer, _), size) in buffers.iter().zip(sizes) {
+        // A buffer shorter than the rounded size (a pooled one is never) would fail validation.
+        encoder.copy_buffer_to_buffer(buffer, 0, &staging, offset, size.min(buffer.size()));
+        offset += size;
+    }
+    traffic::downloaded(total as usize);
     ctx.queue.submit([encoder.finish()]);
-    let slice = staging.slice(..size);
+    let slice = staging.slice(..total);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);
@@ -355,7 +373,12 @@ pub fn read_back<T: bytemuck::Pod>(ctx: &GpuContext, buffer: &wgpu::Buffer, coun
     ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| e.to_string())?;
     rx.recv().map_err(|e| e.to_string())?.map_err(|e| e.to_string())?;
     let data = slice.get_mapped_range().map_err(|e| format!("{e:?}"))?;
-    let out = bytemuck::cast_slice::<u8, T>(&data[..count * std::mem::size_of::<T>()]).to_vec();
+    let mut offset = 0;
+    let out = std::array::from_fn(|k| {
+        let part = &data[offset..offset + buffers[k].1 * item];
+        offset += sizes[k] as usize;
+        bytemuck::pod_collect_to_vec::<u8, T>(part)
+    });
     drop(data);
     staging.unmap();
     Ok(out)
