@@ -11,8 +11,8 @@
 //!   no round-off builds up.
 //!
 //! In f32 the fit's normal equations carry a relative shift of 1e-6 (the CPU's: 1e-10). Where
-//! the sweeps converge slowly on large impulses the residuals' differences sink into the
-//! rounding of `r` (the settled 10,000-disk pile: |Δf| 2–13 × ε|r|); the mixing then stalls, and
+//! the sweeps converge slowly on large impulses the residuals' differences come near the rounding
+//! of `r` (the settled 10,000-disk pile: |Δf| 2–13 × ε|r|); the mixing then stalls, and
 //! the driver's f32 plateau hands the solve to the f64 finish on the CPU (BENCHMARKS.md).
 
 use super::context::GpuContext;
