@@ -57,7 +57,8 @@ impl ColouredSweep {
                 })
                 .collect()
         };
-        match &gp.matrix {
+        // Per operator kind: the colours, the velocities' rebuild, and the buffers to keep.
+        let (matrix_free, per_colour, velocities, mut kept) = match &gp.matrix {
             GpuMatrix::MatrixFree { layout, contacts, body_start, body_list, inv_mass } => {
                 // The operator's own colouring (repaired from the last step's in a simulation).
                 let colouring = match &p.w {
@@ -93,13 +94,7 @@ impl ColouredSweep {
                     ("v", &v),
                 ];
                 let per_colour = per_colour(&kernels.nlgs_colour, &colouring, &buffers);
-                Self {
-                    kernels: kernels.clone(),
-                    matrix_free: true,
-                    per_colour,
-                    velocities: Some((accumulate, layout.inv_mass.len())),
-                    _buffers: vec![diag_buf, order, v],
-                }
+                (true, per_colour, Some((accumulate, layout.inv_mass.len())), vec![order, v])
             }
             GpuMatrix::Sparse { layout, row_ptr, cols, blocks } => {
                 let colouring = Colouring::block_sparse(layout);
@@ -115,15 +110,11 @@ impl ColouredSweep {
                     ("r", r_buf),
                 ];
                 let per_colour = per_colour(&kernels.nlgs_colour_bsr, &colouring, &buffers);
-                Self {
-                    kernels: kernels.clone(),
-                    matrix_free: false,
-                    per_colour,
-                    velocities: None,
-                    _buffers: vec![diag_buf, order],
-                }
+                (false, per_colour, None, vec![order])
             }
-        }
+        };
+        kept.push(diag_buf);
+        Self { kernels: kernels.clone(), matrix_free, per_colour, velocities, _buffers: kept }
     }
 
     /// Records one sweep: a dispatch per colour.

@@ -117,10 +117,7 @@ pub struct RunSummary {
     pub max_iterations: usize,
     /// Steps whose solve ran to max_iter.
     pub max_iter_steps: usize,
-    /// Iterations of all steps, and those of them run on a GPU (the rest of a GPU run's: f64
-    /// finishes on the CPU).
-    pub total_iterations: usize,
-    /// See `total_iterations`.
+    /// Iterations run on a GPU over all steps (the rest of a GPU run's: f64 finishes on the CPU).
     pub gpu_iterations: usize,
     /// Every step's iterations, for the percentiles.
     #[serde(skip)]
@@ -164,7 +161,6 @@ impl RunSummary {
         self.mean_iterations += (r.iterations as f64 - self.mean_iterations) / self.steps as f64;
         self.max_iterations = self.max_iterations.max(r.iterations);
         self.iterations.push(r.iterations);
-        self.total_iterations += r.iterations;
         self.gpu_iterations += r.gpu_iterations;
         if r.stop == StopReason::MaxIter {
             self.max_iter_steps += 1;
@@ -214,10 +210,10 @@ impl RunSummary {
             self.max_iter_steps,
             match self.gpu_iterations {
                 0 => String::new(),
-                gpu if gpu == self.total_iterations => "; all on the GPU".to_string(),
+                gpu if gpu == self.iterations.iter().sum::<usize>() => "; all on the GPU".to_string(),
                 gpu => format!(
                     "; {:.0} % on the GPU, the rest f64 finishes on the CPU",
-                    100.0 * gpu as f64 / self.total_iterations as f64
+                    100.0 * gpu as f64 / self.iterations.iter().sum::<usize>() as f64
                 ),
             },
             self.mean_contacts,

@@ -20,8 +20,8 @@ const PROJECTION_SWEEPS: (usize, usize) = (100, 1000);
 /// CPU) that five times as many go first, and each later batch doubles, within the budget.
 const PROJECTION_BATCH: (usize, usize) = (20, 100);
 
-/// Anderson mixing of the projection sweeps, on either device (the frictionless problem where it gains most:
-/// on the sandbox it ends the projection 2.5–4× sooner with 7–18× smaller overlaps left).
+/// Anderson mixing of the projection sweeps, on either device (the frictionless problem where it
+/// gains most: on the sandbox it ends the projection 2.5–4× sooner with 7–18× smaller overlaps left).
 const PROJECTION_ANDERSON: usize = 5;
 
 /// A new overlap below this fraction of the smaller grain's radius is left as it is: the
@@ -108,21 +108,12 @@ pub(super) fn project_positions(
     // matters here, whatever the conditioning), or the sweep budget is spent. The solver's own
     // test never stops a batch (tol 1e-12); on a GPU it is the natural map's, which the GPU
     // estimates without reading the impulses back.
-    let mut opts = match backend.is_gpu() {
-        false => SolverOptions {
-            tol: 1e-12,
-            max_iter: PROJECTION_BATCH.0,
-            criterion: StopCriterion::Velocity,
-            anderson: PROJECTION_ANDERSON,
-            ..Default::default()
-        },
-        true => SolverOptions {
-            tol: 1e-12,
-            max_iter: PROJECTION_BATCH.1,
-            anderson: PROJECTION_ANDERSON,
-            ..Default::default()
-        },
+    let (max_iter, criterion) = match backend.is_gpu() {
+        false => (PROJECTION_BATCH.0, StopCriterion::Velocity),
+        true => (PROJECTION_BATCH.1, StopCriterion::Natural),
     };
+    let mut opts =
+        SolverOptions { tol: 1e-12, max_iter, criterion, anderson: PROJECTION_ANDERSON, ..Default::default() };
     let budget = (solve_iterations / 4).clamp(PROJECTION_SWEEPS.0, PROJECTION_SWEEPS.1);
     let (mut p, mut sweeps, mut traffic) = (vec![0.0; 2 * contacts.len()], 0, (0, 0));
     let mut dg = vec![0.0; 2 * contacts.len()];

@@ -4,6 +4,7 @@ use super::anderson_fit::{Mixer, MIX, RECORD, RESTART};
 use super::single_contact::project_cone;
 
 /// The mixer's vectors, 2 per contact (the histories: slot `j`'s contact `a` at `j · nc + a`).
+#[derive(Clone)]
 pub struct MixerVectors {
     /// The sweep's output, replaced by the next iterate.
     pub r: Vec<[f32; 2]>,
