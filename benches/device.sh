@@ -55,6 +55,18 @@ gpu_steps() {
 }
 [ -n "$BASELINE" ] && gpu_steps baseline "$BASELINE"
 gpu_steps moreau "$MOREAU"
+if [ -n "$settled" ]; then
+    # Mixing against plain sweeps on the GPU, same binary: where Anderson cuts sweeps (the 400-disk
+    # pile) and where its f32 mixing stalls (the settled pile run to convergence).
+    for anderson in 0 5; do
+        say "pile (400 disks), 100 GPU steps, anderson $anderson"
+        timeout 60 "$MOREAU" run scenes/pile.toml --device gpu --steps 100 --anderson $anderson --vtk-every 0 --quiet \
+            --out "$OUT/runs/pile400_a$anderson" 2>&1 | grep -v "^warning" | tee -a "$log"
+        say "pile_10k settled, steps 301-302 to tol 1e-4 (cap 30000), anderson $anderson"
+        timeout 60 "$MOREAU" run scenes/pile_10k.toml --restart "$settled" --device gpu --steps 2 --max-iter 30000 \
+            --anderson $anderson --quiet --out "$OUT/runs/pile_to_1e4_a$anderson" 2>&1 | grep -v "^warning" | tee -a "$log"
+    done
+fi
 say "sandbox on the GPU, PCPG tol 1e-4"
 timeout 60 "$MOREAU" run scenes/sandbox.toml --device gpu --solver pcpg --steps 5 --vtk-every 0 --quiet \
     --out "$OUT/runs/sandbox_gpu_pcpg" 2>&1 | tee -a "$log"

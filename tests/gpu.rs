@@ -270,6 +270,14 @@ fn a_gpu_solve_counts_its_checks_and_the_scene_bench_times_its_sweep() {
     // pile.toml mixes over 5 sweeps: a second row solves with the mixer.
     let mixed = out.lines().skip_while(|l| !l.contains("NLGS sweep ms (kernels only)")).nth(3).expect("a mixed row");
     assert!(mixed.starts_with("| 5 |") && cells[1] == "0", "{row}\n{mixed}");
+    // And the mixer's stages are timed one by one, each a positive time.
+    let stages =
+        out.lines().find(|l| l.starts_with("Anderson 5 on the GPU, kernels only")).expect("the mixer's stages");
+    let times: Vec<f64> = (stages.split_once("):").expect("timed stages").1)
+        .split(|c: char| c == ',' || c == ';')
+        .filter_map(|part| part.split_whitespace().find_map(|word| word.parse::<f64>().ok()))
+        .collect();
+    assert!(times.len() == 5 && times.iter().all(|t| *t > 0.0 && t.is_finite()), "{stages}");
 }
 
 #[test]
@@ -836,6 +844,40 @@ fn anderson_stages_match_their_mirrors() {
     for action in [RECORD, MIX, RESTART] {
         assert!(actions.contains(&action), "action {action} never taken: {actions:?}");
     }
+}
+
+/// The fit sums the partials of many workgroups (600, as for 300,000 contacts) in its fixed
+/// order: the sums it keeps (the Gram matrix, the reference) are its mirror's to f32 rounding.
+#[test]
+fn anderson_fit_sums_many_groups_as_its_mirror() {
+    use moreau::gpu::cpu::anderson_dots::n_sums;
+    use moreau::gpu::cpu::anderson_fit::{anderson_fit, Mixer, PUSH};
+    use moreau::gpu::kernels::Kernels;
+    let Some(ctx) = common::gpu_context() else { return };
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(9);
+    let (groups, depth) = (600, 4);
+    // A mixer one record in, so this sweep's sums fill a Gram entry and set the reference.
+    let mut mixer = Mixer { has_last: 1, reference: 1e3, ..Mixer::new() };
+    let parts: Vec<f32> = (0..groups * n_sums(depth)).map(|_| rng.gen_range(0.0..1.0)).collect();
+    let before = mixer;
+    let job = [groups as u32, depth as u32, 3, 1];
+    anderson_fit(&parts, groups, depth, &mut mixer, [3, 1]);
+    let out = stages::run_raw(
+        &ctx,
+        |k: &Kernels| &k.anderson_fit,
+        &[bytemuck::cast_slice(&parts), bytemuck::bytes_of(&before), &[0u8; 12]],
+        &[bytemuck::cast_slice(&job)],
+        1,
+        &[1],
+    )
+    .unwrap();
+    let gpu: Mixer = bytemuck::pod_read_unaligned(&out[0]);
+    assert_eq!((gpu.action, gpu.count), (mixer.action, mixer.count));
+    assert!(mixer.action != PUSH || mixer.count == 1, "{mixer:?}");
+    // |f| over 600 groups of about 1/2 each: √300, not a lane's √(1/2).
+    assert!(mixer.reference > 15.0, "{}", mixer.reference);
+    assert_close(&gpu.gram, &mixer.gram, "the Gram matrix");
+    assert_close(&[gpu.reference], &[mixer.reference], "the reference");
 }
 
 /// NLGS on the GPU mixes its sweeps when asked (`anderson = 5`), as the CPU does: on a

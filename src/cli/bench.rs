@@ -286,12 +286,23 @@ fn gpu_scene_rows(p: &ContactProblem, opts: &SolverOptions, a: &BenchArgs) -> Re
     for anderson in depths {
         let opts = SolverOptions { anderson, ..opts.clone() };
         let solved = backend.solve(p, SolverKind::Nlgs, &opts, None)?;
-        // A plateau in f32 hands the rest to the CPU: the time a sweep is the GPU part's.
-        let gpu = solved.parts.first().map_or((solved.iterations, solved.seconds), |g| (g.iterations, g.seconds));
-        let per_sweep = (gpu.0 > 0).then(|| gpu.1 / gpu.0 as f64);
-        let sweeps = match solved.iterations - gpu.0 {
-            0 => gpu.0.to_string(),
-            cpu => format!("{} + {cpu} in f64 on the CPU", gpu.0),
+        // A plateau of mixed f32 sweeps hands the rest to plain ones, a plateau in f32 to the
+        // CPU: the sweeps of each part, and the time a sweep of the first.
+        let first = solved.parts.first().map_or((solved.iterations, solved.seconds), |g| (g.iterations, g.seconds));
+        let per_sweep = (first.0 > 0).then(|| first.1 / first.0 as f64);
+        let sweeps = match solved.parts.len() {
+            0 => solved.iterations.to_string(),
+            _ => solved
+                .parts
+                .iter()
+                .enumerate()
+                .map(|(i, part)| match (i, part.device.as_str()) {
+                    (0, _) => part.iterations.to_string(),
+                    (_, "gpu") => format!("{} plain", part.iterations),
+                    _ => format!("{} in f64 on the CPU", part.iterations),
+                })
+                .collect::<Vec<_>>()
+                .join(" + "),
         };
         let c = solved.gpu_checks;
         println!(
@@ -308,6 +319,17 @@ fn gpu_scene_rows(p: &ContactProblem, opts: &SolverOptions, a: &BenchArgs) -> Re
             c.estimates,
             c.judged,
             1e3 * c.judge_seconds
+        );
+    }
+    if opts.anderson > 0 {
+        let depth = opts.anderson.min(crate::gpu::anderson::MAX_DEPTH);
+        let Some(ctx) = backend.gpu_context() else { return Ok(()) };
+        let m = crate::gpu::timing::mixing_times(ctx, p, a.sweeps, depth)?;
+        let [dots, fit, mix, rebuild] = m.stages.map(|t| 1e3 * t);
+        println!(
+            "Anderson {depth} on the GPU, kernels only (ms a dispatch): dots {dots:.4}, fit {fit:.4}, mix {mix:.4}, velocities' rebuild {rebuild:.4}; a sweep with its mixing {:.4} against {:.4} plain",
+            1e3 * m.mixed_sweep,
+            1e3 * sweep
         );
     }
     Ok(())

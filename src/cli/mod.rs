@@ -423,7 +423,7 @@ fn solve_command(a: SolveArgs) -> Result<()> {
         newton_linear: a.newton_linear,
         apgd_threshold_every: a.apgd_threshold_every,
         history_every: a.history_every,
-        keep_iterates: false,
+        ..Default::default()
     };
     opts.validate().map_err(option_error)?;
     let solver = a.solver.unwrap_or_else(|| {

@@ -12,8 +12,9 @@
 //!
 //! In f32 the fit's normal equations carry a relative shift of 1e-6 (the CPU's: 1e-10). Where
 //! the sweeps converge slowly on large impulses the residuals' differences come near the rounding
-//! of `r` (the settled 10,000-disk pile: |Δf| 2–13 × ε|r|); the mixing then stalls, and
-//! the driver's f32 plateau hands the solve to the f64 finish on the CPU (BENCHMARKS.md).
+//! of `r` (the settled 10,000-disk pile: |Δf| 2–13 × ε|r|); the mixing then stalls, and the
+//! backend goes on with plain GPU sweeps (`backend::plain_after_mixing`, BENCHMARKS.md). On an
+//! H100 a mixed sweep costs twice a plain one (the dots and the fit about 20 µs each).
 
 use super::context::GpuContext;
 use super::cpu::anderson_dots::{n_groups, n_sums};
@@ -33,6 +34,7 @@ pub struct GpuAnderson {
     contact_groups: u32,
     /// The velocities' rebuild (`body_accumulate`'s bind group) and its dispatch's arguments.
     rebuild: Option<(BindGroup, GpuBuffer)>,
+    rebuild_groups: u32,
     state: GpuBuffer,
     _buffers: Vec<GpuBuffer>,
 }
@@ -106,6 +108,7 @@ impl GpuAnderson {
             dot_groups: dot_groups as u32,
             contact_groups: groups(nc),
             rebuild,
+            rebuild_groups: velocities.map_or(0, |(_, bodies)| groups(bodies)),
             state,
             _buffers: vec![before, last_residual, last_impulse, d_residual, d_impulse, partials, shape, job],
         }
@@ -119,6 +122,19 @@ impl GpuAnderson {
         dispatch(pass, &k.anderson_mix, &self.mix, self.contact_groups);
         if let Some((group, args)) = &self.rebuild {
             dispatch_indirect(pass, &k.body_accumulate, group, args);
+        }
+    }
+
+    /// Records stage `k` alone, for timings: the dots, the fit, the mix, or the velocities'
+    /// rebuild at its full size (none without one).
+    pub fn record_stage(&self, pass: &mut wgpu::ComputePass, k: usize) {
+        let kernels = &self.kernels;
+        match (k, &self.rebuild) {
+            (0, _) => dispatch(pass, &kernels.anderson_dots, &self.dots, self.dot_groups),
+            (1, _) => dispatch(pass, &kernels.anderson_fit, &self.fit, 1),
+            (2, _) => dispatch(pass, &kernels.anderson_mix, &self.mix, self.contact_groups),
+            (_, Some((group, _))) => dispatch(pass, &kernels.body_accumulate, group, self.rebuild_groups),
+            (_, None) => {}
         }
     }
 

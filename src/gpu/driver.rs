@@ -47,7 +47,8 @@ fn land_on_cone(p: &ContactProblem, r: &mut [f64]) {
 /// iterations reach 1e-5 on the problems measured, `backend::F32_FLOOR`): the GPU goes on
 /// iterating, where handing the solve to f64 on the CPU would only make the same sweeps slower
 /// (the sandbox's third step, stalled near 2.4e-2 after 1,000 GPU sweeps, then took 25 s on 16
-/// CPU cores for 19,000 sweeps to 8.5e-3). Only a plateau below it stops the GPU part.
+/// CPU cores for 19,000 sweeps to 8.5e-3). Only a plateau below it stops the GPU part, and only
+/// when `gpu_plateau_stops` (plain sweeps after a stalled mixing run past plateaus).
 const F32_PLATEAU_CEILING: f64 = 1e-3;
 
 /// Runs `record(pass)` (one iteration) until a stop; `r_buf` holds the impulses.
@@ -89,7 +90,9 @@ pub fn iterate(
             (stop, stop_reason) = (StopReason::MaxIter, format!("not converged: max_iter = {} reached", opts.max_iter));
             break;
         }
-        if let Some(mark) = stall.stalled(iterations).filter(|&mark| mark <= F32_PLATEAU_CEILING) {
+        if let Some(mark) =
+            stall.stalled(iterations).filter(|&mark| opts.gpu_plateau_stops && mark <= F32_PLATEAU_CEILING)
+        {
             (stop, stop_reason) = (
                 StopReason::Stalled,
                 // A plateau of the f32 iteration: its floor on this problem, or a slow stretch

@@ -74,3 +74,33 @@ pub fn nlgs_sweep_times(ctx: &GpuContext, p: &ContactProblem, n: usize) -> Resul
         largest_colour: run(ctx, n, |pass| sweep.record_colour(pass, largest))?,
     })
 }
+
+/// The Anderson mixer's stages after a sweep, each timed alone (`n` in one submit), and a sweep
+/// with its mixing: where a mixed GPU sweep's extra time goes.
+pub struct MixingTimes {
+    /// Seconds per dispatch of each stage: the fit's dot products, the fit, the mix, and the
+    /// velocities' rebuild at its full size (matrix-free `W`; a mix or a restart needs it).
+    pub stages: [f64; 4],
+    /// Seconds per sweep followed by its mixing, as the solve records them.
+    pub mixed_sweep: f64,
+}
+
+/// Times the mixer of `depth` sweeps on `p`'s coloured NLGS sweeps (from r = 0).
+pub fn mixing_times(ctx: &GpuContext, p: &ContactProblem, n: usize, depth: usize) -> Result<MixingTimes, GpuError> {
+    let gp = GpuProblem::upload(ctx, p);
+    let r0 = vec![[0.0f32; 2]; p.n_contacts()];
+    let r = storage(ctx, "r", &r0);
+    let sweep = ColouredSweep::new(ctx, p, &gp, &r);
+    let mixer = super::anderson::GpuAnderson::new(ctx, &gp, &r0, &r, depth, sweep.velocities());
+    let mixed = |pass: &mut wgpu::ComputePass| {
+        sweep.record(pass);
+        mixer.record(pass);
+    };
+    run(ctx, 3, mixed)?;
+    let mixed_sweep = run(ctx, n, mixed)?;
+    let mut stages = [0.0; 4];
+    for (k, time) in stages.iter_mut().enumerate() {
+        *time = run(ctx, n, |pass| mixer.record_stage(pass, k))?;
+    }
+    Ok(MixingTimes { stages, mixed_sweep })
+}

@@ -233,6 +233,10 @@ pub struct SolverOptions {
     /// Keep a copy of the iterate at every history point (`SolveReport::iterates`), for measures
     /// the solver does not know (the energy norm of a structural problem).
     pub keep_iterates: bool,
+    /// A GPU solve stops at a plateau of its f32 error below 1e-3, where the f64 finish on the
+    /// CPU takes over (the default); false runs it to tol or max_iter.
+    #[serde(skip)]
+    pub gpu_plateau_stops: bool,
 }
 
 impl Default for SolverOptions {
@@ -252,6 +256,7 @@ impl Default for SolverOptions {
             apgd_threshold_every: 10,
             history_every: 0,
             keep_iterates: false,
+            gpu_plateau_stops: true,
         }
     }
 }
@@ -396,6 +401,15 @@ pub struct GpuChecks {
     pub judged: usize,
     /// CPU time of those judgements, read-back included (s).
     pub judge_seconds: f64,
+}
+
+impl GpuChecks {
+    /// Adds another solve's checks to these.
+    pub fn add(&mut self, other: &GpuChecks) {
+        self.estimates += other.estimates;
+        self.judged += other.judged;
+        self.judge_seconds += other.judge_seconds;
+    }
 }
 
 /// Why `kind` cannot solve `problem` with `opts`, if it cannot: rolling resistance is solved by
