@@ -59,6 +59,8 @@ typedef struct MoreauSolveSummary {
   double error;
   double seconds;
   size_t contacts;
+  // Of `iterations`, those run on a GPU (the rest of a GPU solve: its f64 finish on the CPU).
+  size_t gpu_iterations;
 } MoreauSolveSummary;
 
 // What one step did.
@@ -72,6 +74,8 @@ typedef struct MoreauStepReport {
   // Largest overlap at the end of the step (length).
   double max_penetration;
   double seconds;
+  // Of `iterations`, those run on a GPU (the rest of a GPU step: its f64 finish on the CPU).
+  size_t gpu_iterations;
 } MoreauStepReport;
 
 // One contact of the last step.

@@ -76,6 +76,8 @@ pub struct MoreauSolveSummary {
     pub error: f64,
     pub seconds: f64,
     pub contacts: usize,
+    /// Of `iterations`, those run on a GPU (the rest of a GPU solve: its f64 finish on the CPU).
+    pub gpu_iterations: usize,
 }
 
 /// What one step did.
@@ -91,6 +93,8 @@ pub struct MoreauStepReport {
     /// Largest overlap at the end of the step (length).
     pub max_penetration: f64,
     pub seconds: f64,
+    /// Of `iterations`, those run on a GPU (the rest of a GPU step: its f64 finish on the CPU).
+    pub gpu_iterations: usize,
 }
 
 /// One contact of the last step.
@@ -339,6 +343,7 @@ pub extern "C" fn moreau_solution_summary(
             error: r.error,
             seconds: r.seconds,
             contacts: r.r.len() / 2,
+            gpu_iterations: r.gpu_iterations(),
         };
         copy_out(&[summary], out, 1, "out")
     })
@@ -417,6 +422,7 @@ pub extern "C" fn moreau_simulation_step(sim: *mut MoreauSimulation, report: *mu
             converged: r.converged,
             max_penetration: r.max_penetration,
             seconds: r.seconds,
+            gpu_iterations: r.gpu_iterations,
         };
         copy_out(&[out], report, 1, "report")
     })

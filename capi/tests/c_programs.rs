@@ -136,6 +136,16 @@ fn a_c_program_solves_a_siconos_file_as_the_library_does() {
     let mixed = moreau::solve(&problem, SolverKind::Nlgs, &SolverOptions { anderson: 5, ..opts }, None);
     assert!(mixed.converged);
     assert_eq!(field(&out, "iterations") as usize, mixed.iterations, "{out}");
+    assert_eq!(field(&out, "gpu_iterations"), 0.0, "{out}");
+    // On a GPU below the f32 floor: f32 sweeps there, then the f64 finish on the CPU, counted apart.
+    let (code, out, err) = run(&program, &[file.to_str().unwrap(), "1e-10", "nlgs", "0", "gpu"]);
+    if code == Some(1) && err.contains("adapter") && std::env::var("MOREAU_REQUIRE_GPU").as_deref() != Ok("1") {
+        eprintln!("no GPU adapter: the GPU solve from C is skipped ({err})");
+        return;
+    }
+    assert_eq!(code, Some(0), "{out}{err}");
+    let (all, on_gpu) = (field(&out, "iterations"), field(&out, "gpu_iterations"));
+    assert!(on_gpu > 0.0 && on_gpu < all && out.contains("device: gpu"), "{out}");
 }
 
 #[test]

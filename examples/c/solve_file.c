@@ -1,7 +1,7 @@
 /* Solves a Siconos fc2d problem file with moreau's C interface and prints what the solve did.
  *
  *   cc -I include examples/c/solve_file.c -L target/release -lmoreau_c -o solve_file
- *   ./solve_file PROBLEM.dat [TOL [SOLVER [ANDERSON]]]
+ *   ./solve_file PROBLEM.dat [TOL [SOLVER [ANDERSON [DEVICE]]]]
  *
  * Exit status: 0 converged, 3 not converged, 1 an error (the message names it). */
 #include <stdio.h>
@@ -16,7 +16,7 @@ static int report_error(const char *what) {
 
 int main(int argc, char **argv) {
     if (argc < 2) {
-        fprintf(stderr, "usage: %s PROBLEM.dat [TOL [SOLVER [ANDERSON]]]\n", argv[0]);
+        fprintf(stderr, "usage: %s PROBLEM.dat [TOL [SOLVER [ANDERSON [DEVICE]]]]\n", argv[0]);
         return 2;
     }
     MoreauProblem *problem = NULL;
@@ -31,6 +31,9 @@ int main(int argc, char **argv) {
     }
     if (argc > 4) {
         options.anderson = (size_t)strtoul(argv[4], NULL, 10);
+    }
+    if (argc > 5) {
+        options.device = argv[5];
     }
     MoreauSolution *solution = NULL;
     if (moreau_solve(problem, &options, NULL, &solution) != MOREAU_STATUS_OK) {
@@ -47,8 +50,8 @@ int main(int argc, char **argv) {
             normal_sum += r[2 * k];
         }
     }
-    printf("contacts %zu converged %d iterations %zu error %.3e sum_rn %.9e\n", n, summary.converged,
-           summary.iterations, summary.error, normal_sum);
+    printf("contacts %zu converged %d iterations %zu gpu_iterations %zu error %.3e sum_rn %.9e\n", n,
+           summary.converged, summary.iterations, summary.gpu_iterations, summary.error, normal_sum);
     printf("stop: %s\ndevice: %s\n", moreau_solution_stop_reason(solution), moreau_solution_device(solution));
     free(r);
     moreau_solution_free(solution);

@@ -167,6 +167,12 @@ class SolveResult:
     device: str
     #: (iteration, seconds, error) at each point the error was measured.
     history: List[Tuple[int, float, float]] = field(default_factory=list)
+    #: A solve split across devices, part by part: (device, iterations, seconds, error) — on a
+    #: GPU, f32 sweeps (mixed ones that stalled, then plain ones) and an f64 finish on the CPU.
+    #: Empty when one device did it all.
+    parts: List[Tuple[str, int, float, float]] = field(default_factory=list)
+    #: Iterations run on a GPU.
+    gpu_iterations: int = 0
 
 
 def solve(

@@ -35,6 +35,7 @@ def solve(
     threads: int,
     r0: Optional[bytes] = None,
     history_every: int = 0,
+    anderson: int = 0,
 ) -> Dict[str, Any]: ...
 
 class World:

@@ -135,6 +135,9 @@ fn solve<'py>(
     let problem = &problem.0;
     let (report, device) =
         py.detach(|| solve_by_name(problem, solver, device, threads, &opts, r0.as_deref())).map_err(error)?;
+    let parts: Vec<(String, usize, f64, f64)> =
+        report.parts.iter().map(|p| (p.device.clone(), p.iterations, p.seconds, p.error)).collect();
+    let gpu_iterations = report.gpu_iterations();
     let d = PyDict::new(py);
     d.set_item("r", to_bytes(py, &report.r))?;
     d.set_item("u", to_bytes(py, &report.u))?;
@@ -148,6 +151,8 @@ fn solve<'py>(
     d.set_item("device", device)?;
     let history: Vec<(usize, f64, f64)> = report.history.iter().map(|h| (h.iteration, h.seconds, h.error)).collect();
     d.set_item("history", history)?;
+    d.set_item("parts", parts)?;
+    d.set_item("gpu_iterations", gpu_iterations)?;
     Ok(d)
 }
 

@@ -62,6 +62,25 @@ def test_anderson_acceleration_from_python_matches_the_command_line(tmp_path):
     assert plain.converged and plain.iterations != mixed.iterations
 
 
+def test_a_gpu_solve_below_the_f32_floor_lists_its_parts_as_the_command_line_does(tmp_path):
+    problem = moreau.read_fc2d(SEED)
+    try:
+        result = moreau.solve(problem, tol=1e-9, max_iter=20_000, device="gpu", threads=1)
+    except moreau.MoreauError as e:
+        pytest.skip(f"no GPU adapter: {e}")
+    out = tmp_path / "solve.json"
+    args = [cli(), "solve", str(SEED), "--solver", "nlgs", "--tol", "1e-9", "--max-iter", "20000", "--threads", "1"]
+    subprocess.run(args + ["--device", "gpu", "--out", str(out)], check=True, capture_output=True)
+    from_cli = json.loads(out.read_text())
+    assert result.converged and result.error <= 1e-9
+    assert [p[0] for p in result.parts] == [p["device"] for p in from_cli["parts"]] == ["gpu", "cpu"]
+    assert sum(p[1] for p in result.parts) == result.iterations
+    assert result.gpu_iterations == result.parts[0][1] > 0
+    assert result.parts[0][3] > 1e-9, "the f32 part alone should not reach 1e-9"
+    on_cpu = moreau.solve(problem, tol=1e-9, max_iter=20_000, device="cpu", threads=1)
+    assert on_cpu.parts == [] and on_cpu.gpu_iterations == 0
+
+
 def test_a_problem_from_scipy_and_from_a_dense_matrix_solves_to_tolerance():
     sparse = pytest.importorskip("scipy.sparse")
     rng = np.random.default_rng(3)

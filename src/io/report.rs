@@ -1,6 +1,6 @@
 //! The JSON written by `moreau solve --out`.
 
-use crate::solvers::{HistoryPoint, SolveReport, SolverKind, SolverOptions, StopCriterion};
+use crate::solvers::{HistoryPoint, SolvePart, SolveReport, SolverKind, SolverOptions, StopCriterion};
 use serde::Serialize;
 
 /// The JSON of one solve: its setting, its result and its history.
@@ -39,6 +39,11 @@ pub struct SolveOutput<'a> {
     pub notes: &'a [String],
     /// The error at the checks.
     pub history: &'a [HistoryPoint],
+    /// A solve split across devices, part by part (device, iterations, seconds, error, stop):
+    /// f32 sweeps on a GPU, then an f64 finish on the CPU; empty when one device did it all.
+    pub parts: &'a [SolvePart],
+    /// Iterations run on a GPU.
+    pub gpu_iterations: usize,
     /// The impulses.
     pub r: &'a [f64],
     /// Their velocities `W r + q`.
@@ -65,6 +70,8 @@ impl<'a> SolveOutput<'a> {
             stop_reason: &rep.stop_reason,
             notes: &rep.notes,
             history: &rep.history,
+            parts: &rep.parts,
+            gpu_iterations: rep.gpu_iterations(),
             r: &rep.r,
             u: &rep.u,
         }
