@@ -274,7 +274,7 @@ fn a_gpu_solve_counts_its_checks_and_the_scene_bench_times_its_sweep() {
     let stages =
         out.lines().find(|l| l.starts_with("Anderson 5 on the GPU, kernels only")).expect("the mixer's stages");
     let times: Vec<f64> = (stages.split_once("):").expect("timed stages").1)
-        .split(|c: char| c == ',' || c == ';')
+        .split([',', ';'])
         .filter_map(|part| part.split_whitespace().find_map(|word| word.parse::<f64>().ok()))
         .collect();
     assert!(times.len() == 5 && times.iter().all(|t| *t > 0.0 && t.is_finite()), "{stages}");

@@ -393,15 +393,21 @@ fn solve_mixed(
     Ok(joined(kind, vec![into_part("gpu", "gpu (f32)", gpu), into_part("cpu", "cpu (f64)", cpu)]))
 }
 
-/// The options of plain GPU sweeps after mixed ones stalled, if they did: to tol or max_iter,
-/// past plateaus. A stall of the f32 mixer is its differences' rounding (a settled 10,000-disk
-/// pile: differences 2–13× the rounding of r), not the sweeps': plain f32 sweeps reach tol there
-/// (F32_FLOOR is below it), and their velocity test hovers for thousands of sweeps as it does in
-/// f64. On an H100 such a sweep costs 0.05 ms, a sweep of the f64 finish on 16 CPU cores 1.4 ms.
+/// Tolerances from which the plain GPU sweeps after a stalled mixing run past plateaus: 5× the
+/// highest f32 floor measured (2e-5, [`F32_FLOOR`]). Below it a plateau may be that floor, and
+/// the CPU's f64 finish takes over there as after any GPU part.
+const PLAIN_PAST_PLATEAUS_FROM: f64 = 1e-4;
+
+/// The options of plain GPU sweeps after mixed ones stalled, if they did. A stall of the f32
+/// mixer is its differences' rounding (a settled 10,000-disk pile: differences 2–13× the rounding
+/// of r), not the sweeps': plain f32 sweeps reach tol 1e-4 there, after their velocity test has
+/// hovered for thousands of sweeps as it does in f64, so from [`PLAIN_PAST_PLATEAUS_FROM`] they
+/// run to tol or max_iter. On an H100 such a sweep costs 0.05 ms, one of the f64 finish on 16 CPU
+/// cores 1.4 ms.
 fn plain_after_mixing(kind: SolverKind, opts: &SolverOptions, mixed: &SolveReport) -> Option<SolverOptions> {
     (kind == SolverKind::Nlgs && opts.anderson > 0 && mixed.stop == StopReason::Stalled).then(|| SolverOptions {
         anderson: 0,
-        gpu_plateau_stops: false,
+        gpu_plateau_stops: opts.tol < PLAIN_PAST_PLATEAUS_FROM,
         ..opts.clone()
     })
 }
@@ -474,17 +480,20 @@ mod tests {
     use super::*;
     use crate::problem::generate::lattice_packing;
 
-    /// Mixed sweeps that stalled go on as plain ones past plateaus (NLGS only); a solve that
-    /// converged, stopped at max_iter, or never mixed does not.
+    /// Mixed sweeps that stalled go on as plain ones (NLGS only), past plateaus from tol 1e-4;
+    /// a solve that converged, stopped at max_iter, or never mixed does not.
     #[test]
     fn only_stalled_mixed_nlgs_goes_on_plain() {
-        let opts = SolverOptions { anderson: 5, ..Default::default() };
+        let opts = SolverOptions { anderson: 5, tol: 1e-4, ..Default::default() };
         let stalled = SolveReport {
             stop: StopReason::Stalled,
             ..solvers::solve(&lattice_packing(3, 2, 0.5, 1), SolverKind::Nlgs, &opts, None)
         };
         let plain = plain_after_mixing(SolverKind::Nlgs, &opts, &stalled).expect("a stalled mixed solve goes on");
         assert_eq!((plain.anderson, plain.gpu_plateau_stops, plain.tol), (0, false, opts.tol));
+        // Nearer the f32 floor a plateau may be the floor: it stops there, and the CPU finishes.
+        let tight = SolverOptions { tol: 5e-5, ..opts.clone() };
+        assert!(plain_after_mixing(SolverKind::Nlgs, &tight, &stalled).is_some_and(|o| o.gpu_plateau_stops));
         assert!(plain_after_mixing(SolverKind::Pcpg, &opts, &stalled).is_none());
         let unmixed = SolverOptions { anderson: 0, ..opts.clone() };
         assert!(plain_after_mixing(SolverKind::Nlgs, &unmixed, &stalled).is_none());
