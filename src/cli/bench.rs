@@ -275,7 +275,8 @@ fn gpu_scene_rows(p: &ContactProblem, opts: &SolverOptions, a: &BenchArgs) -> Re
     if ctx.is_software() {
         println!("(a software adapter: these rows measure the CPU running lavapipe, not a GPU)");
     }
-    let times = nlgs_sweep_times(&ctx, p, a.sweeps)?;
+    let depth = opts.anderson.min(crate::gpu::anderson::MAX_DEPTH);
+    let times = nlgs_sweep_times(&ctx, p, a.sweeps, depth)?;
     let sweep = times.sweep;
     let backend = Backend::gpu(ctx);
     println!("| Anderson | contacts | NLGS sweep ms (kernels only) | colours | largest colour's dispatch ms | contact updates/s | solve to tol {:.0e}: sweeps, ms per GPU sweep | error estimates, judged in f64 (CPU ms) |", opts.tol);
@@ -321,10 +322,7 @@ fn gpu_scene_rows(p: &ContactProblem, opts: &SolverOptions, a: &BenchArgs) -> Re
             1e3 * c.judge_seconds
         );
     }
-    if opts.anderson > 0 {
-        let depth = opts.anderson.min(crate::gpu::anderson::MAX_DEPTH);
-        let Some(ctx) = backend.gpu_context() else { return Ok(()) };
-        let m = crate::gpu::timing::mixing_times(ctx, p, a.sweeps, depth)?;
+    if let Some(m) = &times.mixing {
         let [dots, fit, mix, rebuild] = m.stages.map(|t| 1e3 * t);
         println!(
             "Anderson {depth} on the GPU, kernels only (ms a dispatch): dots {dots:.4}, fit {fit:.4}, mix {mix:.4}, velocities' rebuild {rebuild:.4}; a sweep with its mixing {:.4} against {:.4} plain",

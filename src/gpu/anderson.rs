@@ -32,9 +32,9 @@ pub struct GpuAnderson {
     mix: BindGroup,
     dot_groups: u32,
     contact_groups: u32,
-    /// The velocities' rebuild (`body_accumulate`'s bind group) and its dispatch's arguments.
-    rebuild: Option<(BindGroup, GpuBuffer)>,
-    rebuild_groups: u32,
+    /// The velocities' rebuild (`body_accumulate`'s bind group), its dispatch's arguments, and
+    /// its full size in workgroups.
+    rebuild: Option<(BindGroup, GpuBuffer, u32)>,
     state: GpuBuffer,
     _buffers: Vec<GpuBuffer>,
 }
@@ -99,7 +99,7 @@ impl GpuAnderson {
                 ("mixer", &state),
             ],
         );
-        let rebuild = velocities.map(|(group, _)| (group.clone(), args));
+        let rebuild = velocities.map(|(group, bodies)| (group.clone(), args, groups(bodies)));
         Self {
             kernels,
             dots,
@@ -108,7 +108,6 @@ impl GpuAnderson {
             dot_groups: dot_groups as u32,
             contact_groups: groups(nc),
             rebuild,
-            rebuild_groups: velocities.map_or(0, |(_, bodies)| groups(bodies)),
             state,
             _buffers: vec![before, last_residual, last_impulse, d_residual, d_impulse, partials, shape, job],
         }
@@ -120,7 +119,7 @@ impl GpuAnderson {
         dispatch(pass, &k.anderson_dots, &self.dots, self.dot_groups);
         dispatch(pass, &k.anderson_fit, &self.fit, 1);
         dispatch(pass, &k.anderson_mix, &self.mix, self.contact_groups);
-        if let Some((group, args)) = &self.rebuild {
+        if let Some((group, args, _)) = &self.rebuild {
             dispatch_indirect(pass, &k.body_accumulate, group, args);
         }
     }
@@ -133,7 +132,7 @@ impl GpuAnderson {
             (0, _) => dispatch(pass, &kernels.anderson_dots, &self.dots, self.dot_groups),
             (1, _) => dispatch(pass, &kernels.anderson_fit, &self.fit, 1),
             (2, _) => dispatch(pass, &kernels.anderson_mix, &self.mix, self.contact_groups),
-            (_, Some((group, _))) => dispatch(pass, &kernels.body_accumulate, group, self.rebuild_groups),
+            (_, Some((group, _, full))) => dispatch(pass, &kernels.body_accumulate, group, *full),
             (_, None) => {}
         }
     }

@@ -58,21 +58,8 @@ pub struct SweepTimes {
     /// Seconds per dispatch of the largest colour alone, `n` of them in one submit: a sweep far
     /// above `colours` times this is not bound by its dispatches.
     pub largest_colour: f64,
-}
-
-/// Times `n` coloured NLGS sweeps of `p`, and `n` dispatches of its largest colour: what a GPU
-/// solve's sweep costs before its checks, and how much of it the dispatches' count explains.
-pub fn nlgs_sweep_times(ctx: &GpuContext, p: &ContactProblem, n: usize) -> Result<SweepTimes, GpuError> {
-    let gp = GpuProblem::upload(ctx, p);
-    let r = storage(ctx, "r", &vec![[0.0f32; 2]; p.n_contacts()]);
-    let sweep = ColouredSweep::new(ctx, p, &gp, &r);
-    let (colours, largest) = sweep.colours();
-    run(ctx, 3, |pass| sweep.record(pass))?; // warm-up, as for the products
-    Ok(SweepTimes {
-        sweep: run(ctx, n, |pass| sweep.record(pass))?,
-        colours,
-        largest_colour: run(ctx, n, |pass| sweep.record_colour(pass, largest))?,
-    })
+    /// The Anderson mixer's stages, when a depth was asked for.
+    pub mixing: Option<MixingTimes>,
 }
 
 /// The Anderson mixer's stages after a sweep, each timed alone (`n` in one submit), and a sweep
@@ -85,22 +72,34 @@ pub struct MixingTimes {
     pub mixed_sweep: f64,
 }
 
-/// Times the mixer of `depth` sweeps on `p`'s coloured NLGS sweeps (from r = 0).
-pub fn mixing_times(ctx: &GpuContext, p: &ContactProblem, n: usize, depth: usize) -> Result<MixingTimes, GpuError> {
+/// Times `n` coloured NLGS sweeps of `p`, and `n` dispatches of its largest colour: what a GPU
+/// solve's sweep costs before its checks, and how much of it the dispatches' count explains.
+/// With `depth` > 0, also the mixer of `depth` sweeps after them, stage by stage.
+pub fn nlgs_sweep_times(ctx: &GpuContext, p: &ContactProblem, n: usize, depth: usize) -> Result<SweepTimes, GpuError> {
     let gp = GpuProblem::upload(ctx, p);
     let r0 = vec![[0.0f32; 2]; p.n_contacts()];
     let r = storage(ctx, "r", &r0);
     let sweep = ColouredSweep::new(ctx, p, &gp, &r);
-    let mixer = super::anderson::GpuAnderson::new(ctx, &gp, &r0, &r, depth, sweep.velocities());
-    let mixed = |pass: &mut wgpu::ComputePass| {
-        sweep.record(pass);
-        mixer.record(pass);
+    let (colours, largest) = sweep.colours();
+    run(ctx, 3, |pass| sweep.record(pass))?; // warm-up, as for the products
+    let (sweep_time, largest_colour) =
+        (run(ctx, n, |pass| sweep.record(pass))?, run(ctx, n, |pass| sweep.record_colour(pass, largest))?);
+    let mixing = match depth {
+        0 => None,
+        _ => {
+            let mixer = super::anderson::GpuAnderson::new(ctx, &gp, &r0, &r, depth, sweep.velocities());
+            let mixed = |pass: &mut wgpu::ComputePass| {
+                sweep.record(pass);
+                mixer.record(pass);
+            };
+            run(ctx, 3, mixed)?;
+            let mixed_sweep = run(ctx, n, mixed)?;
+            let mut stages = [0.0; 4];
+            for (k, time) in stages.iter_mut().enumerate() {
+                *time = run(ctx, n, |pass| mixer.record_stage(pass, k))?;
+            }
+            Some(MixingTimes { stages, mixed_sweep })
+        }
     };
-    run(ctx, 3, mixed)?;
-    let mixed_sweep = run(ctx, n, mixed)?;
-    let mut stages = [0.0; 4];
-    for (k, time) in stages.iter_mut().enumerate() {
-        *time = run(ctx, n, |pass| mixer.record_stage(pass, k))?;
-    }
-    Ok(MixingTimes { stages, mixed_sweep })
+    Ok(SweepTimes { sweep: sweep_time, colours, largest_colour, mixing })
 }

@@ -188,6 +188,7 @@ impl RunSummary {
 
     /// One line for the end of a run.
     pub fn line(&self) -> String {
+        let total: usize = self.iterations.iter().sum();
         format!(
             "{}: {} steps in {:.3} s ({:.1} steps/s; solve {:.0} %, projection {:.0} %), device {} ({} threads), {} tol {:.0e}: {}/{} steps converged (max error {:.2e}), iterations mean {:.1} median {} p95 {} max {} ({} at max_iter{}), contacts mean {:.0}, max penetration {:.2e} of the mean diameter, final kinetic energy {:.3e}",
             self.scene,
@@ -210,11 +211,8 @@ impl RunSummary {
             self.max_iter_steps,
             match self.gpu_iterations {
                 0 => String::new(),
-                gpu if gpu == self.iterations.iter().sum::<usize>() => "; all on the GPU".to_string(),
-                gpu => format!(
-                    "; {:.0} % on the GPU, the rest f64 finishes on the CPU",
-                    100.0 * gpu as f64 / self.iterations.iter().sum::<usize>() as f64
-                ),
+                gpu if gpu == total => "; all on the GPU".to_string(),
+                gpu => format!("; {:.0} % on the GPU, the rest f64 finishes on the CPU", 100.0 * gpu as f64 / total as f64),
             },
             self.mean_contacts,
             self.max_penetration_per_diameter,
