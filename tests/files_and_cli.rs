@@ -193,3 +193,30 @@ fn strict_makes_a_missed_tolerance_an_error() {
     assert!(out_json.exists(), "the result is written before the strict exit");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn focused_sweeps_out_of_range_are_refused_from_the_command_line_and_the_scene() {
+    let out = moreau().args(["run", "scenes/pile.toml", "--steps", "1", "--focus", "101"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("focus 101") && err.contains("at most 100"), "{err}");
+    let dir = std::env::temp_dir().join(format!("moreau-focus-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("focused.toml");
+    let text = std::fs::read_to_string("scenes/pile.toml").unwrap().replacen("[solver]", "[solver]\nfocus = 101", 1);
+    std::fs::write(&scene, text).unwrap();
+    let out = moreau().arg("run").arg(&scene).args(["--steps", "1", "--out"]).arg(dir.join("out")).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("focus 101"), "{err}");
+    // In range, the scene's focus runs.
+    let text = std::fs::read_to_string(&scene).unwrap().replace("focus = 101", "focus = 3");
+    std::fs::write(&scene, text).unwrap();
+    let out = moreau()
+        .arg("run")
+        .arg(&scene)
+        .args(["--steps", "2", "--device", "cpu", "--out"])
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::remove_dir_all(&dir).ok();
+}

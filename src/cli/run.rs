@@ -40,6 +40,10 @@ pub struct RunArgs {
     /// NLGS: Anderson acceleration over this many past sweeps (default: the scene's; 0: off).
     #[arg(long)]
     anderson: Option<usize>,
+    /// NLGS: focused sweeps after each full sweep, over the contacts around its largest changes
+    /// (default: the scene's; 0: off).
+    #[arg(long)]
+    focus: Option<usize>,
     #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
     device: DeviceChoice,
     /// Output directory (default: out/<scene name>).
@@ -225,6 +229,9 @@ fn apply_overrides(scene: &mut scene::Scene, a: &RunArgs) -> Result<()> {
     }
     if let Some(m) = a.anderson {
         scene.settings.options.anderson = m;
+    }
+    if let Some(k) = a.focus {
+        scene.settings.options.focus = k;
     }
     scene.settings.options.validate()?;
     Ok(())

@@ -100,6 +100,8 @@ struct SolverSpec {
     omega: Option<f64>,
     /// NLGS: Anderson acceleration over this many past sweeps (0: off).
     anderson: Option<usize>,
+    /// NLGS: focused sweeps after each full sweep (0: off).
+    focus: Option<usize>,
     /// natural (default), velocity, quad, maxm, qm16 (LMGC90's tests).
     criterion: Option<String>,
 }
@@ -809,6 +811,7 @@ impl Builder<'_> {
             options.max_iter = s.max_iter.unwrap_or(options.max_iter);
             options.omega = s.omega.unwrap_or(1.0);
             options.anderson = s.anderson.unwrap_or(0);
+            options.focus = s.focus.unwrap_or(0);
             if let Some(c) = &s.criterion {
                 options.criterion = StopCriterion::from_name(c).or_else(|_| {
                     self.cx.err(

@@ -18,6 +18,7 @@ pub mod anderson;
 pub mod apgd;
 mod conjugate_gradient;
 pub mod cpg;
+pub mod focus;
 pub mod interior_point;
 pub mod jacobi;
 pub mod latin;
@@ -216,6 +217,9 @@ pub struct SolverOptions {
     pub seed: u64,
     /// NLGS: Anderson acceleration over this many past sweeps (0: plain sweeps).
     pub anderson: usize,
+    /// NLGS: focused sweeps after each full sweep, over the contacts around its largest changes
+    /// (0: full sweeps only; matrix-free problems in forward order).
+    pub focus: usize,
     /// Projected Jacobi relaxation (step = ω / mean diagonal of the contact block).
     pub jacobi_omega: f64,
     /// LATIN search direction: `k = factor · diag(W_αα)` per component (compliance units), the
@@ -249,6 +253,7 @@ impl Default for SolverOptions {
             ordering: Ordering::Forward,
             seed: 0,
             anderson: 0,
+            focus: 0,
             jacobi_omega: 0.5,
             latin_k: LatinK::Auto,
             latin_k_mean: false,
@@ -293,6 +298,10 @@ impl SolverOptions {
         if self.max_iter == 0 {
             return Err(OptionError { name: "max_iter", value: "0".into(), rule: "must be at least 1" });
         }
+        if self.focus > MAX_FOCUS {
+            let rule = "at most 100 focused sweeps after each full sweep";
+            return Err(OptionError { name: "focus", value: self.focus.to_string(), rule });
+        }
         if self.anderson > MAX_ANDERSON {
             let rule = "Anderson acceleration keeps at most 50 past sweeps";
             return Err(OptionError { name: "anderson", value: self.anderson.to_string(), rule });
@@ -303,6 +312,9 @@ impl SolverOptions {
 
 /// Most past sweeps Anderson acceleration may mix.
 pub const MAX_ANDERSON: usize = 50;
+
+/// Most focused sweeps after a full sweep ([`SolverOptions::focus`]).
+pub const MAX_FOCUS: usize = 100;
 
 /// One point of the error history.
 #[derive(Clone, Copy, Debug, Serialize)]

@@ -23,6 +23,7 @@
 use rayon::prelude::*;
 
 use super::anderson::Anderson;
+use super::focus::Focus;
 use super::monitor::Monitor;
 use super::{Ordering, SolveReport, SolverKind, SolverOptions};
 use crate::parallel::parallel;
@@ -124,17 +125,29 @@ fn solve_on(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, threaded:
     if opts.anderson > 0 && p.has_rolling() {
         monitor.note("Anderson acceleration skipped: the problem has rolling rows (plain NLGS)".into());
     }
+    let mut focus = match &p.w {
+        Delassus::MatrixFree(op) if opts.focus > 0 && opts.ordering == Ordering::Forward => {
+            Some((Focus::new(opts.focus, op), op))
+        }
+        _ => None,
+    };
+    if opts.focus > 0 && focus.is_none() {
+        monitor.note("focused sweeps skipped: they need a matrix-free problem swept in forward order".into());
+    }
 
     loop {
         if let Some(mixer) = &mut anderson {
             mixer.before_sweep(&r);
+        }
+        if let Some((focus, _)) = &mut focus {
+            focus.before_sweep(&r);
         }
         match (&threaded, &p.w, opts.ordering) {
             (Some(sweep), Delassus::MatrixFree(op), _) => {
                 let roll =
                     |a: usize, r: &mut SharedSlice, v: &mut SharedSlice| update_rolling(p, op, opts.omega, a, r, v);
                 let solves = (&local, rolling.map(|_| &roll));
-                threaded_sweep(op, sweep, solves, &mut r, state.body_velocity_mut());
+                threaded_sweep(op, sweep, solves, None, &mut r, state.body_velocity_mut());
             }
             (_, _, Ordering::Forward) => (0..nc).for_each(|a| update(a, &mut r, &mut state)),
             (_, _, Ordering::Backward) => (0..nc).rev().for_each(|a| update(a, &mut r, &mut state)),
@@ -147,12 +160,32 @@ fn solve_on(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, threaded:
                 order.iter().for_each(|&a| update(a, &mut r, &mut state));
             }
         }
+        if let Some((focus, op)) = &mut focus {
+            let (contacts, sweeps) = focus.select(op, &diag, &r);
+            for _ in 0..sweeps {
+                match &threaded {
+                    Some(sweep) => {
+                        let roll = |a: usize, r: &mut SharedSlice, v: &mut SharedSlice| {
+                            update_rolling(p, op, opts.omega, a, r, v)
+                        };
+                        let solves = (&local, rolling.map(|_| &roll));
+                        threaded_sweep(op, sweep, solves, Some(contacts), &mut r, state.body_velocity_mut());
+                    }
+                    None => contacts.iter().for_each(|&a| update(a, &mut r, &mut state)),
+                }
+            }
+            // Iterations count sweeps' worth of contact updates: observe adds the full sweep.
+            monitor.add_iterations(focus.work(nc) - 1);
+        }
         if let Some(mixer) = &mut anderson {
             mixer.after_sweep(p, &mut r, &mut state);
         }
         if monitor.observe(&r, None) {
             break;
         }
+    }
+    if let Some((focus, _)) = &focus {
+        monitor.note(focus.note(nc));
     }
     if let Some(mixer) = anderson {
         monitor.note(format!("Anderson acceleration over {} sweeps, {} restarts", opts.anderson, mixer.restarts));
@@ -310,6 +343,11 @@ pub fn block_colours(op: &MatrixFree, nc: usize) -> Option<Vec<Vec<(usize, usize
     Some(by_colour)
 }
 
+/// The contacts of `list` (in increasing order) within `[first, end)`.
+fn within(list: &[usize], first: usize, end: usize) -> &[usize] {
+    &list[list.partition_point(|&a| a < first)..list.partition_point(|&a| a < end)]
+}
+
 /// Contact `a`'s update through shared slices (no other task touches its bodies meanwhile).
 #[inline]
 fn update_shared<L, G>(
@@ -337,11 +375,13 @@ fn update_shared<L, G>(
 }
 
 /// One threaded sweep, colour by colour: a colour's contacts (contact colours, a contiguous
-/// range each) or its blocks (each swept in contact order) on threads.
+/// range each) or its blocks (each swept in contact order) on threads; only the contacts of
+/// `subset` (in increasing order) when one is given.
 fn threaded_sweep<L, G>(
     op: &MatrixFree,
     sweep: &Sweep,
     (local, rolling): LocalSolves<L, G>,
+    subset: Option<&[usize]>,
     r: &mut [f64],
     v: &mut [f64],
 ) where
@@ -353,15 +393,25 @@ fn threaded_sweep<L, G>(
         let (mut r, mut v) = (shared_r, shared_v);
         update_shared(op, (local, rolling), a, &mut r, &mut v);
     };
-    match sweep {
-        Sweep::Colours(ranges) => {
+    match (sweep, subset) {
+        (Sweep::Colours(ranges), None) => {
             for &(first, end) in *ranges {
                 (first..end).into_par_iter().with_min_len(MIN_TASK).for_each(update);
             }
         }
-        Sweep::Blocks(colours) => {
+        (Sweep::Colours(ranges), Some(list)) => {
+            for &(first, end) in *ranges {
+                within(list, first, end).par_iter().with_min_len(MIN_TASK).for_each(|&a| update(a));
+            }
+        }
+        (Sweep::Blocks(colours), None) => {
             for colour in *colours {
                 colour.par_iter().for_each(|&(first, end)| (first..end).for_each(update));
+            }
+        }
+        (Sweep::Blocks(colours), Some(list)) => {
+            for colour in *colours {
+                colour.par_iter().for_each(|&(first, end)| within(list, first, end).iter().for_each(|&a| update(a)));
             }
         }
     }
