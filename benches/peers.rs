@@ -8,7 +8,8 @@
 //! `cargo bench --bench peers` (scene `scenes/pile_10k.toml`; MOREAU_PEERS_SCENE, _WARMUP (the
 //! settling steps), _LEAD (untimed steps of each configuration), _STEPS and _THREADS (moreau's
 //! thread counts, `1,16`; default one and all cores) change it; MOREAU_PEERS_DEVICES=cpu,gpu adds
-//! rows solved on a GPU, which take the last thread count for detection).
+//! rows solved on a GPU, which take the last thread count for detection; MOREAU_PEERS_ONLY runs
+//! only the rows it names, `;`-separated, as the table names their settings).
 //! The settled state is kept in target/peers/settled_<scene>_<warmup>_<threads>.json and read
 //! back by the next run of the same scene file. Writes target/peers/peers.csv and peers.svg/.png (largest overlap against milliseconds per
 //! step, one curve per engine). rapier2d is built without its `parallel` feature, so it runs on
@@ -43,6 +44,15 @@ struct Row {
 
 /// Anderson depth of the accelerated rows when the scene has none.
 const ANDERSON: usize = 5;
+
+/// Focused sweeps of the focused rows (BENCHMARKS.md, "Focused sweeps").
+const FOCUS: usize = 19;
+
+/// Whether a row's setting is among MOREAU_PEERS_ONLY's (`;`-separated, e.g.
+/// `4 iterations;tol 1e-4, focus 19`); every row without it.
+fn chosen(setting: &str) -> bool {
+    std::env::var("MOREAU_PEERS_ONLY").map_or(true, |only| only.split(';').any(|s| s.trim() == setting))
+}
 
 fn env(name: &str, default: usize) -> usize {
     std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)
@@ -99,7 +109,7 @@ fn main() {
     let (settled, checkpoint) = settle(&path, load(), warmup, threads);
     let mut rows = Vec::new();
 
-    for iterations in [4usize, 8, 16] {
+    for iterations in [4usize, 8, 16].into_iter().filter(|i| chosen(&format!("{i} iterations"))) {
         let mut pile = rapier_pile(&settled, h, iterations).unwrap_or_else(|e| panic!("{e}"));
         let pile = std::cell::RefCell::new(&mut pile);
         let (ms, mean, max, contacts, ke) = measure(
@@ -127,15 +137,17 @@ fn main() {
         });
     }
 
-    // (setting, tolerance, fixed sweep count, Anderson depth instead of the scene's): the
-    // scene's solver, and at two tolerances the other side of Anderson acceleration.
+    // (setting, tolerance, fixed sweep count, Anderson depth instead of the scene's, focused
+    // sweeps): the scene's solver, at two tolerances the other side of Anderson acceleration,
+    // and focused sweeps without Anderson.
     let (other, named) = match first.settings.options.anderson {
         0 => (ANDERSON, format!("Anderson {ANDERSON}")),
         _ => (0, "plain NLGS".to_string()),
     };
-    let tolerances = [1e-2, 1e-3, 1e-4].map(|t| (format!("tol {t:.0e}"), Some(t), None, None));
-    let mixed = [1e-3, 1e-4].map(|t| (format!("tol {t:.0e}, {named}"), Some(t), None, Some(other)));
-    let sweeps = [4usize, 8, 16].map(|k| (format!("{k} sweeps"), None, Some(k), None));
+    let tolerances = [1e-2, 1e-3, 1e-4].map(|t| (format!("tol {t:.0e}"), Some(t), None, None, None));
+    let mixed = [1e-3, 1e-4].map(|t| (format!("tol {t:.0e}, {named}"), Some(t), None, Some(other), None));
+    let focused = [1e-3, 1e-4].map(|t| (format!("tol {t:.0e}, focus {FOCUS}"), Some(t), None, Some(0), Some(FOCUS)));
+    let sweeps = [4usize, 8, 16].map(|k| (format!("{k} sweeps"), None, Some(k), None, None));
     // The CPU at each thread count; a GPU once, its detection on the last count, without the
     // Anderson rows (the GPU's sweeps have none).
     let runs: Vec<(DeviceChoice, usize)> = devices
@@ -148,13 +160,15 @@ fn main() {
     for &(device, t) in &runs {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().expect("a thread pool");
         let on_gpu = device != DeviceChoice::Cpu;
-        for (setting, tol, fixed, anderson) in tolerances.iter().chain(&mixed).chain(&sweeps) {
-            if on_gpu && anderson.is_some() {
+        for (setting, tol, fixed, anderson, focus) in tolerances.iter().chain(&mixed).chain(&focused).chain(&sweeps) {
+            // The GPU's sweeps have no Anderson rows of their own, nor focused sweeps.
+            if (on_gpu && anderson.is_some()) || !chosen(setting) {
                 continue;
             }
             let mut s = load();
             let base = SolverOptions {
                 anderson: anderson.unwrap_or(s.settings.options.anderson),
+                focus: focus.unwrap_or(s.settings.options.focus),
                 ..s.settings.options.clone()
             };
             s.settings.options = match (tol, fixed) {

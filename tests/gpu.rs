@@ -924,6 +924,9 @@ fn the_gpu_mixes_its_sweeps_as_the_cpu_does() {
     let deep = SolverOptions { tol: 1e-5, max_iter: 50_000, anderson: 12, ..SolverOptions::default() };
     let said = moreau::backend::gpu_omits(SolverKind::Nlgs, &deep).expect("a history past 8 is cut");
     assert!(said.contains("at most 8") && said.contains("anderson = 12"), "{said}");
+    let focused = SolverOptions { focus: 19, ..deep.clone() };
+    let said = moreau::backend::gpu_omits(SolverKind::Nlgs, &focused).expect("focused sweeps are CPU sweeps");
+    assert!(said.contains("anderson = 12") && said.contains("focus = 19"), "{said}");
     let r = moreau::gpu::solve(&ctx, &cases[1].1, SolverKind::Nlgs, &deep, None).unwrap();
     assert!(
         r.converged && r.notes.iter().any(|n| n.starts_with("Anderson acceleration over 8 sweeps")),

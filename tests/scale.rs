@@ -191,7 +191,7 @@ fn threaded_nlgs_converges_and_is_the_same_on_two_and_four_threads() {
     let runs: Vec<_> =
         [1, 2, 4, 2].iter().map(|&t| on_threads(t, || solve(&p, SolverKind::Nlgs, &opts, None))).collect();
     for (t, r) in [1, 2, 4, 2].iter().zip(&runs) {
-        assert!(r.converged && r.error <= 1e-9, "{t} threads: {:.2e} {}", r.error, r.stop_reason);
+        assert!(r.converged && r.error <= 1e-6, "{t} threads: {:.2e} {}", r.error, r.stop_reason);
     }
     let bits = |r: &moreau::SolveReport| r.r.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     assert_eq!(bits(&runs[1]), bits(&runs[2]), "two and four threads sweep in the same colour order");

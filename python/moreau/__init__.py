@@ -173,6 +173,9 @@ class SolveResult:
     parts: List[Tuple[str, int, float, float]] = field(default_factory=list)
     #: Iterations run on a GPU.
     gpu_iterations: int = 0
+    #: What the solver chose on its own (LATIN's search direction, the focus's share, a skipped
+    #: acceleration), a line each.
+    notes: List[str] = field(default_factory=list)
 
 
 def solve(
@@ -185,19 +188,24 @@ def solve(
     r0: Optional[Any] = None,
     history_every: int = 0,
     anderson: int = 0,
+    focus: int = 0,
 ) -> SolveResult:
     """Solves ``problem`` with ``solver`` (one of :data:`SOLVERS`) to the relative natural-map
     error ``tol``, on ``device`` (``cpu``, ``gpu`` or ``auto``) with ``threads`` CPU threads
     (0: all cores), from ``r0`` (zero if None); NLGS mixes its last ``anderson`` sweeps
-    (Anderson acceleration, 0: off). Not converging is not an error: the result says so."""
+    (Anderson acceleration, 0: off) and, on a matrix-free problem (a simulation step's), follows
+    each full sweep with ``focus`` sweeps over the contacts around its largest changes (0: off;
+    iterations then count sweeps' worth of contact updates). Not converging is not an error: the
+    result says so."""
     if not isinstance(problem, Problem):
         raise MoreauError(f"problem: expected a moreau.Problem, got {type(problem).__name__}")
     if isinstance(max_iter, bool) or int(max_iter) != max_iter or max_iter < 0:
         raise MoreauError(f"max_iter {max_iter}: must be a whole number >= 1")
     anderson = _count(anderson, "anderson")
+    focus = _count(focus, "focus")
     r0_bytes = None if r0 is None else _f64(r0, "r0")
     d = _moreau.solve(problem._inner, solver, float(tol), int(max_iter), device, int(threads), r0_bytes,
-                      int(history_every), anderson)
+                      int(history_every), anderson, focus)
     d["r"] = _from(d["r"], "<f8")
     d["u"] = _from(d["u"], "<f8")
     return SolveResult(**d)
@@ -215,12 +223,13 @@ class Simulation:
     """
 
     def __init__(self, world: World, h: float, theta: float = 0.5, alert: Optional[float] = None,
-                 solver: str = "nlgs", tol: float = 1e-4, max_iter: int = 10_000, anderson: int = 0) -> None:
+                 solver: str = "nlgs", tol: float = 1e-4, max_iter: int = 10_000, anderson: int = 0,
+                 focus: int = 0) -> None:
         if isinstance(world, _moreau.Simulation):
             self._inner = world
             return
         self._inner = _moreau.Simulation(world, h, theta, alert, solver, tol, max_iter,
-                                         _count(anderson, "anderson"))
+                                         _count(anderson, "anderson"), _count(focus, "focus"))
 
     @classmethod
     def from_scene(cls, path: Path) -> "Simulation":

@@ -36,6 +36,7 @@ def solve(
     r0: Optional[bytes] = None,
     history_every: int = 0,
     anderson: int = 0,
+    focus: int = 0,
 ) -> Dict[str, Any]: ...
 
 class World:
@@ -87,6 +88,8 @@ class Simulation:
         solver: str = "nlgs",
         tol: float = 1e-4,
         max_iter: int = 10000,
+        anderson: int = 0,
+        focus: int = 0,
     ) -> None: ...
     @staticmethod
     def from_scene(path: _Path) -> Simulation: ...

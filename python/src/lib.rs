@@ -116,7 +116,7 @@ fn read_problem(path: PathBuf) -> PyResult<Problem> {
 
 /// Solves `problem`; returns a dict of the report (arrays as bytes).
 #[pyfunction]
-#[pyo3(signature = (problem, solver, tol, max_iter, device, threads, r0 = None, history_every = 0, anderson = 0))]
+#[pyo3(signature = (problem, solver, tol, max_iter, device, threads, r0 = None, history_every = 0, anderson = 0, focus = 0))]
 #[allow(clippy::too_many_arguments)]
 fn solve<'py>(
     py: Python<'py>,
@@ -129,9 +129,10 @@ fn solve<'py>(
     r0: Option<&[u8]>,
     history_every: usize,
     anderson: usize,
+    focus: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let r0 = r0.map(|b| floats(b, "r0")).transpose()?;
-    let opts = SolverOptions { tol, max_iter, history_every, anderson, ..SolverOptions::default() };
+    let opts = SolverOptions { tol, max_iter, history_every, anderson, focus, ..SolverOptions::default() };
     let problem = &problem.0;
     let (report, device) =
         py.detach(|| solve_by_name(problem, solver, device, threads, &opts, r0.as_deref())).map_err(error)?;
@@ -153,6 +154,7 @@ fn solve<'py>(
     d.set_item("history", history)?;
     d.set_item("parts", parts)?;
     d.set_item("gpu_iterations", gpu_iterations)?;
+    d.set_item("notes", report.notes.clone())?;
     Ok(d)
 }
 
@@ -339,7 +341,7 @@ impl Simulation {
     /// A simulation of `world` with time step `h`; the alert distance defaults to 5 % of the
     /// smallest grain radius and the solver to NLGS at `tol`.
     #[new]
-    #[pyo3(signature = (world, h, theta = 0.5, alert = None, solver = "nlgs", tol = 1e-4, max_iter = 10_000, anderson = 0))]
+    #[pyo3(signature = (world, h, theta = 0.5, alert = None, solver = "nlgs", tol = 1e-4, max_iter = 10_000, anderson = 0, focus = 0))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         world: &World,
@@ -350,12 +352,13 @@ impl Simulation {
         tol: f64,
         max_iter: usize,
         anderson: usize,
+        focus: usize,
     ) -> PyResult<Self> {
         let mut settings = StepSettings::for_world(&world.0, h);
         settings.theta = theta;
         settings.alert = alert.unwrap_or(settings.alert);
         settings.solver = moreau::SolverKind::from_name(solver).map_err(error)?;
-        settings.options = SolverOptions { tol, max_iter, anderson, ..settings.options };
+        settings.options = SolverOptions { tol, max_iter, anderson, focus, ..settings.options };
         moreau::Simulation::new(world.0.clone(), settings).map(Self).map_err(error)
     }
 

@@ -207,6 +207,8 @@ def test_a_world_built_from_python_lets_a_grain_land_and_rest():
     problem = sim.last_problem()
     assert problem.matrix_free and problem.n_contacts == len(sim.contacts()["body"])
     assert moreau.solve(problem, tol=1e-10).error <= 1e-10
+    focused = moreau.solve(problem, tol=1e-10, focus=3)
+    assert focused.error <= 1e-10 and any(n.startswith("focused sweeps: ") for n in focused.notes), focused.notes
 
 
 def test_rolling_resistance_from_python_stops_a_rolling_disk_after_three_v0_squared_over_four_eta_g():
@@ -259,6 +261,8 @@ def test_a_force_and_a_velocity_set_from_python_act_on_the_next_step():
         (lambda: moreau.solve(moreau.read_fc2d(SEED), anderson=51), "anderson 51: Anderson acceleration keeps at most 50"),
         (lambda: moreau.solve(moreau.read_fc2d(SEED), anderson=-1), "anderson -1: must be a whole number >= 0"),
         (lambda: moreau.Simulation(moreau.World([("glass", 2500.0)]), 1e-3, anderson=51), "anderson 51"),
+        (lambda: moreau.Simulation(moreau.World([("glass", 2500.0)]), 1e-3, focus=101), "focus 101: at most 100"),
+        (lambda: moreau.solve(moreau.read_fc2d(SEED), focus=-1), "focus -1: must be a whole number >= 0"),
         (lambda: moreau.Problem(np.eye(2), [0.0, float("nan")], [0.1]), "q[1] is not finite"),
         (lambda: moreau.Problem(np.eye(2), [0.0, 0.0], [-0.1]), "mu[0] = -0.1 is not a friction coefficient"),
         (lambda: moreau.Problem(np.eye(3), [0.0, 0.0], [0.1]), "W has shape (3, 3), expected (2, 2)"),

@@ -115,12 +115,24 @@ pub fn gpu_refusal(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
 }
 
 /// What a GPU solve of `kind` with `opts` leaves out, if anything: the GPU's Anderson mixer
-/// keeps at most [`crate::gpu::anderson::MAX_DEPTH`] sweeps (a CPU finish keeps them all).
+/// keeps at most [`crate::gpu::anderson::MAX_DEPTH`] sweeps (a CPU finish keeps them all), and
+/// its sweeps are never focused (a CPU finish's are).
 pub fn gpu_omits(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
     let most = crate::gpu::anderson::MAX_DEPTH;
-    (kind == SolverKind::Nlgs && opts.anderson > most).then(|| {
-        format!("the GPU's Anderson mixer keeps at most {most} sweeps (anderson = {}): it mixes {most}", opts.anderson)
-    })
+    let mut omitted = Vec::new();
+    if kind == SolverKind::Nlgs && opts.anderson > most {
+        omitted.push(format!(
+            "the GPU's Anderson mixer keeps at most {most} sweeps (anderson = {}): it mixes {most}",
+            opts.anderson
+        ));
+    }
+    if kind == SolverKind::Nlgs && opts.focus > 0 {
+        omitted.push(format!(
+            "the GPU sweeps every contact (focus = {}): only a finish on the CPU focuses its sweeps",
+            opts.focus
+        ));
+    }
+    (!omitted.is_empty()).then(|| omitted.join("; "))
 }
 
 impl Backend {
