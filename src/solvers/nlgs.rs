@@ -114,6 +114,11 @@ fn solve_on(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, threaded:
         Delassus::MatrixFree(op) if p.has_rolling() => Some(op),
         _ => None,
     };
+    // A threaded sweep of a matrix-free problem, over every contact or over `subset`.
+    let sweep_on_threads = |op: &MatrixFree, sweep: &Sweep, subset: Option<&[usize]>, r: &mut [f64], v: &mut [f64]| {
+        let roll = |a: usize, r: &mut SharedSlice, v: &mut SharedSlice| update_rolling(p, op, opts.omega, a, r, v);
+        threaded_sweep(op, sweep, (&local, rolling.map(|_| &roll)), subset, r, v);
+    };
     let update = |a: usize, r: &mut [f64], state: &mut SweepState| {
         update_contact(p, &diag, opts.omega, a, r, state);
         if let Some(op) = rolling {
@@ -144,10 +149,7 @@ fn solve_on(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, threaded:
         }
         match (&threaded, &p.w, opts.ordering) {
             (Some(sweep), Delassus::MatrixFree(op), _) => {
-                let roll =
-                    |a: usize, r: &mut SharedSlice, v: &mut SharedSlice| update_rolling(p, op, opts.omega, a, r, v);
-                let solves = (&local, rolling.map(|_| &roll));
-                threaded_sweep(op, sweep, solves, None, &mut r, state.body_velocity_mut());
+                sweep_on_threads(op, sweep, None, &mut r, state.body_velocity_mut())
             }
             (_, _, Ordering::Forward) => (0..nc).for_each(|a| update(a, &mut r, &mut state)),
             (_, _, Ordering::Backward) => (0..nc).rev().for_each(|a| update(a, &mut r, &mut state)),
@@ -164,13 +166,7 @@ fn solve_on(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, threaded:
             let (contacts, sweeps) = focus.select(op, &diag, &r);
             for _ in 0..sweeps {
                 match &threaded {
-                    Some(sweep) => {
-                        let roll = |a: usize, r: &mut SharedSlice, v: &mut SharedSlice| {
-                            update_rolling(p, op, opts.omega, a, r, v)
-                        };
-                        let solves = (&local, rolling.map(|_| &roll));
-                        threaded_sweep(op, sweep, solves, Some(contacts), &mut r, state.body_velocity_mut());
-                    }
+                    Some(sweep) => sweep_on_threads(op, sweep, Some(contacts), &mut r, state.body_velocity_mut()),
                     None => contacts.iter().for_each(|&a| update(a, &mut r, &mut state)),
                 }
             }
