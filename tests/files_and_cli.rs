@@ -195,6 +195,32 @@ fn strict_makes_a_missed_tolerance_an_error() {
 }
 
 #[test]
+fn the_colour_ordering_runs_from_the_command_line_and_an_unknown_one_is_named() {
+    let dir = std::env::temp_dir().join(format!("moreau-colours-{}", std::process::id()));
+    let run = |ordering: &str| {
+        moreau()
+            .args(["run", "scenes/pile.toml", "--steps", "60", "--device", "cpu", "--vtk-every", "0", "--quiet"])
+            .args(["--ordering", ordering, "--out"])
+            .arg(dir.join(ordering))
+            .output()
+            .unwrap()
+    };
+    // The flag takes: colour by colour sweeps in another order than forward, so other counts.
+    let sweeps = |ordering: &str| {
+        let out = run(ordering);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let summary = std::fs::read_to_string(dir.join(ordering).join("summary.json")).unwrap();
+        let line = summary.lines().find(|l| l.contains("\"mean_iterations\"")).expect("mean_iterations").to_string();
+        line
+    };
+    assert_ne!(sweeps("colours"), sweeps("forward"));
+    let out = run("spiral");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("spiral") && err.contains("colours"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
 fn focused_sweeps_out_of_range_are_refused_from_the_command_line_and_the_scene() {
     let out = moreau().args(["run", "scenes/pile.toml", "--steps", "1", "--focus", "101"]).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);

@@ -10,7 +10,7 @@ use moreau::backend::{gpu_refusal, Backend, DeviceChoice, F32_FLOOR};
 use moreau::gpu::GpuContext;
 use moreau::problem::generate::lattice_packing;
 use moreau::solvers::stopping::CHECK_WORK;
-use moreau::solvers::{solve, NewtonLinear, SolverKind, SolverOptions, StopCriterion, StopReason};
+use moreau::solvers::{solve, NewtonLinear, Ordering, SolverKind, SolverOptions, StopCriterion, StopReason};
 use moreau::stepping::Simulation;
 use moreau::ContactProblem;
 use rand::{rngs::SmallRng, seq::SliceRandom, SeedableRng};
@@ -249,6 +249,35 @@ fn focused_sweeps_meet_tol_and_give_the_same_bits_on_every_run() {
     let opts = SolverOptions { max_iter: 3, ..focused };
     let r = solve(&explicit, SolverKind::Nlgs, &opts, Some(&r0));
     assert!(r.notes.iter().any(|n| n.starts_with("focused sweeps skipped")), "{:?}", r.notes);
+}
+
+#[test]
+fn colour_ordered_nlgs_is_the_forward_sweep_of_the_problem_numbered_by_colour_on_any_threads() {
+    let p = lattice_packing(80, 40, 0.5, 6);
+    let opts = SolverOptions { tol: 1e-6, max_iter: 20_000, ordering: Ordering::Colours, ..Default::default() };
+    let runs: Vec<_> = [1, 2, 4].iter().map(|&t| on_threads(t, || solve(&p, SolverKind::Nlgs, &opts, None))).collect();
+    for (t, r) in [1, 2, 4].iter().zip(&runs) {
+        assert!(r.converged && r.error <= 1e-6, "{t} threads: {:.2e} {}", r.error, r.stop_reason);
+    }
+    let bits = |r: &[f64]| r.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&runs[0].r), bits(&runs[1].r), "one and two threads sweep in the same colour order");
+    assert_eq!(bits(&runs[0].r), bits(&runs[2].r), "one and four threads");
+    // The same as one thread's forward sweep over the problem numbered colour by colour.
+    let moreau::problem::Delassus::MatrixFree(op) = &p.w else { unreachable!() };
+    let (colouring, numbered) = moreau::solvers::nlgs::colour_ordered(&p, op);
+    let forward = SolverOptions { ordering: Ordering::Forward, ..opts.clone() };
+    let reference = on_threads(1, || solve(&numbered, SolverKind::Nlgs, &forward, None));
+    assert_eq!(reference.iterations, runs[0].iterations);
+    let back: Vec<f64> =
+        colouring.order.iter().flat_map(|&a| [runs[0].r[2 * a as usize], runs[0].r[2 * a as usize + 1]]).collect();
+    assert_eq!(bits(&back), bits(&reference.r));
+    // A different order from the contacts' own: the sweep counts differ.
+    let own = on_threads(1, || solve(&p, SolverKind::Nlgs, &forward, None));
+    assert_ne!(own.iterations, runs[0].iterations);
+    // An explicit W has no bodies to colour by: forward, said so.
+    let explicit = ContactProblem { w: moreau::problem::Delassus::Sparse(p.w.to_block_sparse()), ..p.clone() };
+    let r = solve(&explicit, SolverKind::Nlgs, &SolverOptions { max_iter: 3, ..opts }, None);
+    assert!(r.notes.iter().any(|n| n.starts_with("colour ordering needs a matrix-free problem")), "{:?}", r.notes);
 }
 
 /// A scene stepped `steps` times on `threads` threads: every position's bits.

@@ -105,7 +105,7 @@ pub fn gpu_refusal(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
     if kind == SolverKind::Nlgs && opts.omega != 1.0 {
         return Some(format!("the GPU's NLGS has no relaxation (omega = {})", opts.omega));
     }
-    if kind == SolverKind::Nlgs && opts.ordering != Ordering::Forward {
+    if kind == SolverKind::Nlgs && !matches!(opts.ordering, Ordering::Forward | Ordering::Colours) {
         return Some(format!("the GPU's NLGS sweeps in colour order, not {:?}", opts.ordering).to_lowercase());
     }
     if opts.keep_iterates {

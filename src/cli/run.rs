@@ -44,6 +44,10 @@ pub struct RunArgs {
     /// (default: the scene's; 0: off).
     #[arg(long)]
     focus: Option<usize>,
+    /// NLGS contact ordering (default: the scene's, else forward; `colours` sweeps colour by
+    /// colour as the GPU does).
+    #[arg(long, value_enum)]
+    ordering: Option<crate::solvers::Ordering>,
     #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
     device: DeviceChoice,
     /// Output directory (default: out/<scene name>).
@@ -232,6 +236,9 @@ fn apply_overrides(scene: &mut scene::Scene, a: &RunArgs) -> Result<()> {
     }
     if let Some(k) = a.focus {
         scene.settings.options.focus = k;
+    }
+    if let Some(o) = a.ordering {
+        scene.settings.options.ordering = o;
     }
     scene.settings.options.validate()?;
     Ok(())

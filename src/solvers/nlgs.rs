@@ -41,6 +41,10 @@ const MIN_TASK: usize = 256;
 /// problem), mixing its sweeps when `opts.anderson` asks for it.
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveReport {
     match &p.w {
+        // Forward within each colour: the colour ranges are swept in order, on any thread count.
+        Delassus::MatrixFree(op) if opts.ordering == Ordering::Colours => {
+            solve_coloured(p, op, &SolverOptions { ordering: Ordering::Forward, ..opts.clone() }, &r)
+        }
         Delassus::MatrixFree(op) if opts.ordering == Ordering::Forward && parallel(p.n_contacts()) => {
             match block_colours(op, p.n_contacts()) {
                 Some(blocks) => solve_on(p, opts, r, Some(Sweep::Blocks(&blocks))),
@@ -136,6 +140,9 @@ fn solve_on(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, threaded:
         }
         _ => None,
     };
+    if opts.ordering == Ordering::Colours {
+        monitor.note("colour ordering needs a matrix-free problem: swept in forward order".into());
+    }
     if opts.focus > 0 && focus.is_none() {
         monitor.note("focused sweeps skipped: they need a matrix-free problem swept in forward order".into());
     }
@@ -151,7 +158,8 @@ fn solve_on(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, threaded:
             (Some(sweep), Delassus::MatrixFree(op), _) => {
                 sweep_on_threads(op, sweep, None, &mut r, state.body_velocity_mut())
             }
-            (_, _, Ordering::Forward) => (0..nc).for_each(|a| update(a, &mut r, &mut state)),
+            // Colours reach here only on an explicit W (noted below): swept forward.
+            (_, _, Ordering::Forward | Ordering::Colours) => (0..nc).for_each(|a| update(a, &mut r, &mut state)),
             (_, _, Ordering::Backward) => (0..nc).rev().for_each(|a| update(a, &mut r, &mut state)),
             (_, _, Ordering::Symmetric) => {
                 (0..nc).for_each(|a| update(a, &mut r, &mut state));
