@@ -4,7 +4,8 @@
 # benchmark (target/peers/settled_pile_10k_300_*.json, from `cargo bench --bench peers`).
 #   MOREAU=target/release/moreau PEERS=target/release/deps/peers-<hash> OUT=dir bash benches/device.sh
 # BASELINE=another/moreau adds its GPU steps beside MOREAU's (a change measured side by side);
-# LATTICES=0 leaves out `moreau bench`; SWEEPS=0 the sweep anatomy (`bench --scene`); PEERS_DEVICES=gpu leaves out the CPU rows of the peers.
+# LATTICES=0 leaves out `moreau bench`; SWEEPS=0 the sweep anatomy (`bench --scene`); PEERS_DEVICES=gpu leaves out the CPU rows of the peers;
+# CROSSING=0 the piles of 400-4,000 disks on both devices (where `auto`'s GPU_MIN_BODIES should lie).
 # Writes OUT/device.log (every table, with the device each one ran on) and OUT/runs.tgz (each
 # run's steps.csv and summary.json, the peer table and chart).
 set -u
@@ -65,6 +66,28 @@ if [ -n "$settled" ]; then
         say "pile_10k settled, steps 301-302 to tol 1e-4 (cap 30000), anderson $anderson"
         timeout 60 "$MOREAU" run scenes/pile_10k.toml --restart "$settled" --device gpu --steps 2 --max-iter 30000 \
             --anderson $anderson --quiet --out "$OUT/runs/pile_to_1e4_a$anderson" 2>&1 | grep -v "^warning" | tee -a "$log"
+    done
+fi
+if [ -z "$BASELINE" ]; then
+    say "the sandbox's first step to 1e-4: 100,000 GPU sweeps; focused sweeps on $THREADS cores (20,000 sweeps' worth)"
+    timeout 60 "$MOREAU" run scenes/sandbox.toml --device gpu --steps 1 --max-iter 100000 --vtk-every 0 --quiet \
+        --out "$OUT/runs/sandbox_gpu_1e4" 2>&1 | tee -a "$log"
+    timeout 90 "$MOREAU" run scenes/sandbox.toml --device cpu --threads "$THREADS" --steps 1 --max-iter 20000 --focus 19 \
+        --anderson 0 --vtk-every 0 --quiet --out "$OUT/runs/sandbox_cpu_focus_1e4" 2>&1 | tee -a "$log"
+fi
+if [ "${CROSSING:-1}" != 0 ]; then
+    # scenes/pile.toml with more disks in a box grown with them: the first 100 steps on each device.
+    mkdir -p "$OUT/scenes"
+    for n in 400 1000 2000 4000; do
+        s=$(awk "BEGIN { print sqrt($n / 400) }")
+        awk -v n=$n -v s=$s '/^count =/ { $0 = "count = " n }
+            /max = \[0.12, 0.3\]/ { sub(/\[0.12, 0.3\]/, "[" 0.12 * s ", " 0.3 * s "]") } { print }' \
+            scenes/pile.toml > "$OUT/scenes/pile_$n.toml"
+        for device in gpu cpu; do
+            say "pile of $n disks, first 100 steps, $device"
+            timeout 60 "$MOREAU" run "$OUT/scenes/pile_$n.toml" --steps 100 --device $device --threads "$THREADS" \
+                --vtk-every 0 --quiet --out "$OUT/runs/crossing_${n}_$device" 2>&1 | grep -v "^warning" | tee -a "$log"
+        done
     done
 fi
 say "sandbox on the GPU, PCPG tol 1e-4"

@@ -4,9 +4,10 @@
 //!
 //! A GPU iterates in f32. Asked for a tolerance below [`F32_FLOOR`], or stalled above the
 //! tolerance, a GPU solve finishes in f64 on the CPU from the GPU's impulses (mixed precision);
-//! mixed (Anderson) NLGS sweeps that stall go on as plain GPU sweeps first. The report lists
-//! every part.
+//! mixed (Anderson) NLGS sweeps that stall go on as plain GPU sweeps first, and the next solves
+//! of the same backend sweep plain for a while (`MixingPause`). The report lists every part.
 
+use std::sync::atomic::{AtomicUsize, Ordering as Atomic};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -27,7 +28,9 @@ pub const F32_FLOOR: f64 = 1e-5;
 /// Bodies below which `auto` steps a scene on the CPU even when a hardware GPU is there: a GPU
 /// sweep costs a dispatch per colour (tens of µs) whatever the size. On an H200 beside 16 cores
 /// the 400-disk pile ran its 300 steps 2.2× faster on the CPU (which also kept Anderson
-/// acceleration), while the 10,000-disk pile stepped 2–6× faster on the GPU.
+/// acceleration), while the 10,000-disk pile stepped 2–6× faster on the GPU. On an H100 beside
+/// 16 cores, the first 100 steps of piles of 400, 1,000 and 2,000 disks: 10× faster on the CPU,
+/// 1.13× and 2.6× faster on the GPU.
 pub const GPU_MIN_BODIES: usize = 1_000;
 
 /// What the user asked for.
@@ -82,6 +85,57 @@ pub enum BackendError {
 pub struct Backend {
     device: Device,
     reason: String,
+    pause: MixingPause,
+}
+
+/// Solves a stalled GPU mixing leaves plain at first, doubling while each retry stalls again.
+const PAUSE_FIRST: usize = 8;
+/// The longest pause: a retry of the mixing costs one solve at most every this many.
+const PAUSE_MAX: usize = 64;
+
+/// When a backend's mixed GPU sweeps stall in f32, the next solves sweep plain: a time step's
+/// problem is much like the last one's, so mixing that stalled once stalls again, and a mixed
+/// sweep costs about twice a plain one on a GPU (the settled 10,000-disk pile: 1.3–1.6× slower
+/// steps mixed than plain, BENCHMARKS.md). Retried after [`PAUSE_FIRST`] solves, then after
+/// twice as many each time it stalls again, up to [`PAUSE_MAX`]; a retry that does not stall
+/// ends the pause.
+#[derive(Debug, Default)]
+struct MixingPause {
+    /// Solves still to run plain.
+    left: AtomicUsize,
+    /// The pause the last stall started (0: none since mixing last went well).
+    length: AtomicUsize,
+}
+
+impl Clone for MixingPause {
+    fn clone(&self) -> Self {
+        Self {
+            left: AtomicUsize::new(self.left.load(Atomic::Relaxed)),
+            length: AtomicUsize::new(self.length.load(Atomic::Relaxed)),
+        }
+    }
+}
+
+impl MixingPause {
+    /// Whether this solve runs plain, counting it: the solves left after it, if so.
+    fn take(&self) -> Option<usize> {
+        let left = self.left.load(Atomic::Relaxed);
+        (left > 0).then(|| {
+            self.left.store(left - 1, Atomic::Relaxed);
+            left - 1
+        })
+    }
+
+    /// After a mixed solve: a stall pauses the next solves, longer each time; else no pause.
+    fn record(&self, stalled: bool) {
+        let length = match (stalled, self.length.load(Atomic::Relaxed)) {
+            (false, _) => 0,
+            (true, 0) => PAUSE_FIRST,
+            (true, last) => (2 * last).min(PAUSE_MAX),
+        };
+        self.length.store(length, Atomic::Relaxed);
+        self.left.store(length, Atomic::Relaxed);
+    }
 }
 
 impl Default for Backend {
@@ -138,17 +192,17 @@ pub fn gpu_omits(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
 impl Backend {
     /// The CPU, f64.
     pub fn cpu() -> Self {
-        Self { device: Device::Cpu, reason: "asked for".into() }
+        Self { device: Device::Cpu, reason: "asked for".into(), pause: MixingPause::default() }
     }
 
     /// The CPU, chosen for `reason` (said by [`Self::describe`]).
     pub fn cpu_because(reason: impl Into<String>) -> Self {
-        Self { device: Device::Cpu, reason: reason.into() }
+        Self { device: Device::Cpu, reason: reason.into(), pause: MixingPause::default() }
     }
 
     /// This GPU context.
     pub fn gpu(ctx: GpuContext) -> Self {
-        Self { device: Device::Gpu(Arc::new(ctx)), reason: "asked for".into() }
+        Self { device: Device::Gpu(Arc::new(ctx)), reason: "asked for".into(), pause: MixingPause::default() }
     }
 
     /// Decides where solves of `kind` with `opts` run, before any work: `cpu`; `gpu` (a hardware
@@ -196,7 +250,7 @@ impl Backend {
             DeviceChoice::Gpu if rolling => return Err(BackendError::Refused(ROLLING_ON_CPU.into())),
             _ => {}
         }
-        let cpu = |reason: String| Ok(Self { device: Device::Cpu, reason });
+        let cpu = |reason: String| Ok(Self { device: Device::Cpu, reason, pause: MixingPause::default() });
         match choice {
             DeviceChoice::Cpu => Ok(Self::cpu()),
             DeviceChoice::Gpu => {
@@ -210,7 +264,7 @@ impl Backend {
                     "asked for".into()
                 };
                 let reason = with_omission(reason, kind, opts);
-                Ok(Self { device: Device::Gpu(Arc::new(ctx)), reason })
+                Ok(Self { device: Device::Gpu(Arc::new(ctx)), reason, pause: MixingPause::default() })
             }
             DeviceChoice::Auto => {
                 if let Some(why) = gpu_refusal(kind, opts) {
@@ -231,6 +285,7 @@ impl Backend {
                     Ok(ctx) => Ok(Self {
                         device: Device::Gpu(Arc::new(ctx)),
                         reason: with_omission("hardware GPU found".into(), kind, opts),
+                        pause: MixingPause::default(),
                     }),
                     Err(e) => cpu(e.to_string()),
                 }
@@ -326,7 +381,7 @@ impl Backend {
             Device::Gpu(ctx) => {
                 self.check(kind, opts)?;
                 let before = Traffic::now();
-                let mut report = solve_mixed(ctx, problem, kind, opts, r0)?;
+                let mut report = solve_mixed(ctx, problem, kind, opts, r0, &self.pause)?;
                 let traffic = Traffic::since(before);
                 report.gpu_dispatches = traffic.dispatches;
                 report.gpu_bytes = traffic.bytes_up + traffic.bytes_down;
@@ -376,20 +431,38 @@ pub fn solve_by_name(
 
 /// f32 on the GPU to `max(tol, F32_FLOOR)`, then, if that misses `tol`, f64 on the CPU from the
 /// GPU's impulses with what is left of the iteration budget. Mixed NLGS sweeps that stall in f32
-/// first go on as plain sweeps on the GPU ([`plain_after_mixing`]); the CPU takes what is left.
+/// first go on as plain sweeps on the GPU ([`plain_after_mixing`]), and pause the mixing of the
+/// next solves (`pause`); the CPU takes what is left.
 fn solve_mixed(
     ctx: &GpuContext,
     problem: &ContactProblem,
     kind: SolverKind,
     opts: &SolverOptions,
     r0: Option<&[f64]>,
+    pause: &MixingPause,
 ) -> Result<SolveReport, BackendError> {
     let gpu_opts = SolverOptions { tol: opts.tol.max(F32_FLOOR), ..opts.clone() };
+    let mixes = kind == SolverKind::Nlgs && opts.anderson > 0;
+    let paused = mixes.then(|| pause.take()).flatten();
+    // A paused solve sweeps as the plain sweeps after a stalled mixing would.
+    let gpu_opts = match paused {
+        Some(_) => plain_sweeps(&gpu_opts),
+        None => gpu_opts,
+    };
     let mut gpu = crate::gpu::solve(ctx, problem, kind, &gpu_opts, r0)?;
     gpu.notes.extend(gpu_omits(kind, opts));
+    if let Some(left) = paused {
+        gpu.notes.push(format!(
+            "Anderson mixing paused: it stalled in f32 on a recent solve (plain GPU sweeps, {left} more solves before it is tried again)"
+        ));
+    }
     let misses = |r: &SolveReport| !r.converged || r.judged_error > opts.tol;
     let left = |r: &SolveReport| opts.max_iter.saturating_sub(r.iterations);
-    if let Some(plain_opts) = plain_after_mixing(kind, &gpu_opts, &gpu).filter(|_| left(&gpu) > 0) {
+    let stalled = plain_after_mixing(kind, &gpu_opts, &gpu);
+    if mixes && paused.is_none() {
+        pause.record(stalled.is_some());
+    }
+    if let Some(plain_opts) = stalled.filter(|_| left(&gpu) > 0) {
         let plain_opts = SolverOptions { max_iter: left(&gpu), ..plain_opts };
         let plain = crate::gpu::solve(ctx, problem, kind, &plain_opts, Some(&gpu.r))?;
         gpu =
@@ -417,11 +490,13 @@ const PLAIN_PAST_PLATEAUS_FROM: f64 = 1e-4;
 /// run to tol or max_iter. On an H100 such a sweep costs 0.05 ms, one of the f64 finish on 16 CPU
 /// cores 1.4 ms.
 fn plain_after_mixing(kind: SolverKind, opts: &SolverOptions, mixed: &SolveReport) -> Option<SolverOptions> {
-    (kind == SolverKind::Nlgs && opts.anderson > 0 && mixed.stop == StopReason::Stalled).then(|| SolverOptions {
-        anderson: 0,
-        gpu_plateau_stops: opts.tol < PLAIN_PAST_PLATEAUS_FROM,
-        ..opts.clone()
-    })
+    (kind == SolverKind::Nlgs && opts.anderson > 0 && mixed.stop == StopReason::Stalled).then(|| plain_sweeps(opts))
+}
+
+/// `opts` for plain GPU sweeps in place of mixed ones: past plateaus from
+/// [`PLAIN_PAST_PLATEAUS_FROM`].
+fn plain_sweeps(opts: &SolverOptions) -> SolverOptions {
+    SolverOptions { anderson: 0, gpu_plateau_stops: opts.tol < PLAIN_PAST_PLATEAUS_FROM, ..opts.clone() }
 }
 
 /// A solve's parts in order (each part of a report already joined, else the report as one part
@@ -513,6 +588,54 @@ mod tests {
             let other = SolveReport { stop, ..stalled.clone() };
             assert!(plain_after_mixing(SolverKind::Nlgs, &opts, &other).is_none(), "{stop:?}");
         }
+    }
+
+    /// A stall pauses the mixing of the next solves, 8 at first, twice as many after each retry
+    /// that stalls again (at most 64); a retry that goes well ends the pause.
+    #[test]
+    fn a_stalled_mixing_pauses_the_next_solves_longer_each_time() {
+        let pause = MixingPause::default();
+        assert_eq!(pause.take(), None, "no pause before a stall");
+        let paused_solves = |pause: &MixingPause| std::iter::from_fn(|| pause.take()).count();
+        let mut lengths = Vec::new();
+        for _ in 0..5 {
+            pause.record(true);
+            lengths.push(paused_solves(&pause));
+        }
+        assert_eq!(lengths, [PAUSE_FIRST, 2 * PAUSE_FIRST, 4 * PAUSE_FIRST, PAUSE_MAX, PAUSE_MAX]);
+        pause.record(false);
+        assert_eq!(pause.take(), None, "a retry that went well ends the pause");
+        pause.record(true);
+        assert_eq!(paused_solves(&pause.clone()), PAUSE_FIRST, "and the next stall starts over");
+    }
+
+    /// A paused GPU solve sweeps plain and says so; once the pause is spent the solves mix
+    /// again. On the software adapter; skipped (said) without one.
+    #[test]
+    fn a_paused_gpu_solve_sweeps_plain_and_the_one_after_the_pause_mixes() {
+        let ctx = match GpuContext::new() {
+            Ok(ctx) => ctx,
+            Err(e) if std::env::var("MOREAU_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("{e}"),
+            Err(e) => return eprintln!("skipping: {e}"),
+        };
+        let backend = Backend::gpu(ctx);
+        let p = lattice_packing(30, 15, 0.5, 2);
+        let opts = SolverOptions { tol: 1e-5, max_iter: 50_000, anderson: 5, ..Default::default() };
+        backend.pause.left.store(2, Atomic::Relaxed);
+        let mixed_note = "Anderson acceleration over 5 sweeps (on the GPU)";
+        for left in [1, 0] {
+            let r = backend.solve(&p, SolverKind::Nlgs, &opts, None).unwrap();
+            assert!(r.converged && r.judged_error <= 1e-5, "{}", r.stop_reason);
+            let said =
+                format!("Anderson mixing paused: it stalled in f32 on a recent solve (plain GPU sweeps, {left} more");
+            assert!(r.notes.iter().any(|n| n.starts_with(&said)), "{:?}", r.notes);
+            assert!(!r.notes.iter().any(|n| n.starts_with(mixed_note)), "{:?}", r.notes);
+        }
+        let r = backend.solve(&p, SolverKind::Nlgs, &opts, None).unwrap();
+        assert!(r.converged && r.notes.iter().any(|n| n.starts_with(mixed_note)), "{:?}", r.notes);
+        assert!(!r.notes.iter().any(|n| n.contains("mixing paused")), "{:?}", r.notes);
+        // That mixing converged without a stall: no pause follows.
+        assert_eq!(backend.pause.take(), None);
     }
 
     /// Solves run one after another join into one report: every part in order (a joined report
