@@ -332,7 +332,10 @@ fn the_position_projection_sweeps_on_the_gpu_and_separates_as_on_the_cpu() {
         );
         assert!(r.projection_seconds > 0.0);
     }
-    assert!(cpu.iter().all(|r| r.gpu_dispatches == 0 && r.gpu_iterations == 0));
+    assert!(cpu.iter().all(|r| r.gpu_dispatches == 0 && r.gpu_iterations == 0 && r.gpu_checks.estimates == 0));
+    // Every GPU solve estimated its error at least once, and judged in f64 no more often.
+    let checks: Vec<_> = gpu.iter().filter(|r| r.iterations > 0).map(|r| r.gpu_checks).collect();
+    assert!(!checks.is_empty() && checks.iter().all(|c| c.estimates >= 1 && c.judged <= c.estimates), "{checks:?}");
     // Four sweeps a step meet no plateau: every iteration of a GPU step ran on the GPU.
     let split: Vec<(usize, usize)> = gpu.iter().map(|r| (r.gpu_iterations, r.iterations)).collect();
     assert!(split.iter().all(|(g, i)| g == i) && split.iter().any(|&(g, _)| g > 0), "{split:?}");

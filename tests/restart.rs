@@ -238,3 +238,32 @@ fn saved_grains_start_a_scene_where_the_run_left_them() {
     assert!(!bad.status.success() && err.contains("is a polygon; a grains file holds disks"), "{err}");
     assert!(!dir.join("no.csv").exists());
 }
+
+/// A paused GPU mixing (solves left plain, the pause's length) goes into a checkpoint and back,
+/// follows the simulation to another backend, and a checkpoint without it (an older file) reads
+/// as no pause; an impossible one is refused by name.
+#[test]
+fn a_checkpoint_carries_the_paused_gpu_mixing() {
+    let load = || {
+        let s = moreau::scene::load(Path::new("scenes/pile.toml")).unwrap();
+        Simulation::new(s.world, s.settings).unwrap()
+    };
+    let mut sim = load();
+    sim.step().unwrap();
+    sim.backend().set_mixing_pause([3, 8]);
+    let c = sim.checkpoint();
+    assert_eq!(c.mixing_pause, [3, 8]);
+    let mut other = load();
+    other.restore(&c).unwrap();
+    assert_eq!(other.backend().mixing_pause(), [3, 8]);
+    other.set_backend(moreau::backend::Backend::cpu()).unwrap();
+    assert_eq!(other.backend().mixing_pause(), [3, 8], "a new backend of the same simulation keeps the pause");
+    // A file from before the field: no pause.
+    let mut json: serde_json::Value = serde_json::to_value(&c).unwrap();
+    json.as_object_mut().unwrap().remove("mixing_pause");
+    let old: moreau::stepping::Checkpoint = serde_json::from_value(json).unwrap();
+    assert_eq!(old.mixing_pause, [0, 0]);
+    let bad = moreau::stepping::Checkpoint { mixing_pause: [9, 8], ..c.clone() };
+    let err = load().restore(&bad).unwrap_err().to_string();
+    assert!(err.contains("mixing_pause [9, 8]"), "{err}");
+}

@@ -91,7 +91,7 @@ pub struct Backend {
 /// Solves a stalled GPU mixing leaves plain at first, doubling while each retry stalls again.
 const PAUSE_FIRST: usize = 8;
 /// The longest pause: a retry of the mixing costs one solve at most every this many.
-const PAUSE_MAX: usize = 64;
+pub const PAUSE_MAX: usize = 64;
 
 /// When a backend's mixed GPU sweeps stall in f32, the next solves sweep plain: a time step's
 /// problem is much like the last one's, so mixing that stalled once stalls again, and a mixed
@@ -198,6 +198,19 @@ impl Backend {
     /// The CPU, chosen for `reason` (said by [`Self::describe`]).
     pub fn cpu_because(reason: impl Into<String>) -> Self {
         Self { device: Device::Cpu, reason: reason.into(), pause: MixingPause::default() }
+    }
+
+    /// The paused GPU mixing: solves still to sweep plain, and the pause's length (for a
+    /// checkpoint; see `MixingPause`).
+    pub fn mixing_pause(&self) -> [usize; 2] {
+        [self.pause.left.load(Atomic::Relaxed), self.pause.length.load(Atomic::Relaxed)]
+    }
+
+    /// Takes up a paused mixing as [`Self::mixing_pause`] gave it (a restored checkpoint, or
+    /// another backend of the same simulation).
+    pub fn set_mixing_pause(&self, [left, length]: [usize; 2]) {
+        self.pause.left.store(left, Atomic::Relaxed);
+        self.pause.length.store(length, Atomic::Relaxed);
     }
 
     /// This GPU context.

@@ -39,6 +39,9 @@ struct Row {
     detection_seconds: f64,
     solve_seconds: f64,
     projection_seconds: f64,
+    gpu_estimates: usize,
+    gpu_judged: usize,
+    gpu_judge_seconds: f64,
 }
 
 /// One row of `walls.csv`: a wall's position and the grains' mean force and moment on it.
@@ -328,6 +331,9 @@ impl RunOutput {
             detection_seconds: r.detection_seconds,
             solve_seconds: r.solve_seconds,
             projection_seconds: r.projection_seconds,
+            gpu_estimates: r.gpu_checks.estimates,
+            gpu_judged: r.gpu_checks.judged,
+            gpu_judge_seconds: r.gpu_checks.judge_seconds,
         })?;
         Ok(())
     }

@@ -37,6 +37,10 @@ pub struct Checkpoint {
     pub contacts: Vec<CarriedContact>,
     /// Which bodies could move when the colours were given (absent: no colours).
     pub moving: Option<Vec<bool>>,
+    /// The GPU's paused mixing then: solves still to sweep plain, and the pause's length
+    /// (`backend`'s `MixingPause`; zeros on the CPU and in files written before it).
+    #[serde(default)]
+    pub mixing_pause: [usize; 2],
 }
 
 /// The checkpoint format this version writes and reads.
@@ -135,6 +139,7 @@ impl Simulation {
                 .collect(),
             contacts,
             moving: colours.map(|(_, moving)| moving.to_vec()),
+            mixing_pause: self.backend.mixing_pause(),
         }
     }
 
@@ -188,6 +193,13 @@ impl Simulation {
                 return refuse(why);
             }
         }
+        let [left, length] = c.mixing_pause;
+        if left > length || length > crate::backend::PAUSE_MAX {
+            return refuse(format!(
+                "mixing_pause [{left}, {length}]: solves left above the pause, or a pause above {}",
+                crate::backend::PAUSE_MAX
+            ));
+        }
         let entries =
             keys.into_iter().zip(c.contacts.iter().map(|x| [x.impulse[0], x.impulse[1], x.rolling])).collect();
         let b = &mut self.world.bodies;
@@ -199,6 +211,7 @@ impl Simulation {
             (wall.center, wall.angle, wall.velocity, wall.spin) = (s.center.into(), s.angle, s.velocity.into(), s.spin);
         }
         self.warm_start = WarmStart::from_parts(entries, colours);
+        self.backend.set_mixing_pause(c.mixing_pause);
         (self.time, self.step_index) = (c.time, c.steps_done);
         self.contacts.clear();
         self.forces.clear();

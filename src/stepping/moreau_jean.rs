@@ -404,6 +404,7 @@ fn apply(
         detection_seconds,
         solve_seconds: 0.0,
         projection_seconds: 0.0,
+        gpu_checks: Default::default(),
     };
     let mut v_end = v_free;
     let mut impulses = Vec::new();
@@ -415,6 +416,7 @@ fn apply(
         report.converged = solved.converged;
         report.stop = solved.stop;
         (report.gpu_dispatches, report.gpu_bytes) = (solved.gpu_dispatches, solved.gpu_bytes);
+        report.gpu_checks = solved.gpu_checks;
         report.stop_reason = solved.stop_reason.clone();
         impulses = solved.r;
         if impulses.iter().any(|x| !x.is_finite()) {

@@ -143,6 +143,9 @@ pub struct StepReport {
     pub solve_seconds: f64,
     /// Time in the position projection (s), on the step's device.
     pub projection_seconds: f64,
+    /// How a GPU solve checked its error (estimates, f64 judgements and their time): what its
+    /// iterations cost beyond their kernels; zero on the CPU.
+    pub gpu_checks: crate::solvers::GpuChecks,
 }
 
 impl StepReport {
@@ -313,6 +316,8 @@ impl Simulation {
         if backend.is_gpu() && self.world.effects.rolling_resistance {
             return Err(StepError::Settings(crate::backend::ROLLING_ON_CPU.into()));
         }
+        // The pause of a stalled GPU mixing follows the simulation's solves, not the device.
+        backend.set_mixing_pause(self.backend.mixing_pause());
         self.backend = backend;
         Ok(())
     }
@@ -326,6 +331,7 @@ impl Simulation {
         let backend = Backend::choose_for_scene(choice, self.settings.solver, &self.settings.options, rolling, bodies)
             .map_err(|e| StepError::Settings(e.to_string()))?;
         let line = backend.describe();
+        backend.set_mixing_pause(self.backend.mixing_pause());
         self.backend = backend;
         Ok(line)
     }
