@@ -4,8 +4,9 @@
 //!
 //! A GPU iterates in f32. Asked for a tolerance below [`F32_FLOOR`], or stalled above the
 //! tolerance, a GPU solve finishes in f64 on the CPU from the GPU's impulses (mixed precision);
-//! mixed (Anderson) NLGS sweeps that stall go on as plain GPU sweeps first, and the next solves
-//! of the same backend sweep plain for a while (`MixingPause`). The report lists every part.
+//! plain NLGS sweeps iterate on past plateaus from tol 1e-4 (`gpu_options`); mixed (Anderson)
+//! NLGS sweeps that stall go on as plain GPU sweeps first, and the next solves of the same
+//! backend sweep plain for a while (`MixingPause`). The report lists every part.
 
 use std::sync::atomic::{AtomicUsize, Ordering as Atomic};
 use std::sync::Arc;
@@ -454,14 +455,9 @@ fn solve_mixed(
     r0: Option<&[f64]>,
     pause: &MixingPause,
 ) -> Result<SolveReport, BackendError> {
-    let gpu_opts = SolverOptions { tol: opts.tol.max(F32_FLOOR), ..opts.clone() };
     let mixes = kind == SolverKind::Nlgs && opts.anderson > 0;
     let paused = mixes.then(|| pause.take()).flatten();
-    // A paused solve sweeps as the plain sweeps after a stalled mixing would.
-    let gpu_opts = match paused {
-        Some(_) => plain_sweeps(&gpu_opts),
-        None => gpu_opts,
-    };
+    let gpu_opts = gpu_options(kind, opts, paused.is_some());
     let mut gpu = crate::gpu::solve(ctx, problem, kind, &gpu_opts, r0)?;
     gpu.notes.extend(gpu_omits(kind, opts));
     if let Some(left) = paused {
@@ -491,9 +487,22 @@ fn solve_mixed(
     Ok(joined(kind, vec![into_part("gpu", "gpu (f32)", gpu), into_part("cpu", "cpu (f64)", cpu)]))
 }
 
-/// Tolerances from which the plain GPU sweeps after a stalled mixing run past plateaus: 5× the
-/// highest f32 floor measured (2e-5, [`F32_FLOOR`]). Below it a plateau may be that floor, and
-/// the CPU's f64 finish takes over there as after any GPU part.
+/// The options of the GPU part of a solve: to `max(tol, F32_FLOOR)`; plain NLGS sweeps (asked
+/// for, or the mixing `paused`) as [`plain_sweeps`] runs them. Plain sweeps that handed their
+/// plateaus to the f64 finish took 6.8× longer on the settled 10,000-disk pile (an H100, steps
+/// 301–304 to tol 1e-4: 12.3 s, 26,000 of the 50,000 sweeps on the CPU, against 1.8 s all on
+/// the GPU), because the velocity test hovers for thousands of sweeps in f64 as in f32.
+fn gpu_options(kind: SolverKind, opts: &SolverOptions, paused: bool) -> SolverOptions {
+    let gpu_opts = SolverOptions { tol: opts.tol.max(F32_FLOOR), ..opts.clone() };
+    match kind == SolverKind::Nlgs && (paused || opts.anderson == 0) {
+        true => plain_sweeps(&gpu_opts),
+        false => gpu_opts,
+    }
+}
+
+/// Tolerances from which plain GPU sweeps run past plateaus: 5× the highest f32 floor measured
+/// (2e-5, [`F32_FLOOR`]). Below it a plateau may be that floor, and the CPU's f64 finish takes
+/// over there as after any GPU part.
 const PLAIN_PAST_PLATEAUS_FROM: f64 = 1e-4;
 
 /// The options of plain GPU sweeps after mixed ones stalled, if they did. A stall of the f32
@@ -601,6 +610,24 @@ mod tests {
             let other = SolveReport { stop, ..stalled.clone() };
             assert!(plain_after_mixing(SolverKind::Nlgs, &opts, &other).is_none(), "{stop:?}");
         }
+    }
+
+    /// Plain NLGS on the GPU, asked for or with its mixing paused, runs past f32 plateaus from
+    /// tol 1e-4 and stops at them below; mixed NLGS and the other solvers keep the plateau rule.
+    #[test]
+    fn plain_gpu_sweeps_run_past_plateaus_from_tol_1e_4() {
+        let opts = |tol, anderson| SolverOptions { tol, anderson, ..Default::default() };
+        let stops = |kind, o: SolverOptions, paused| {
+            let g = gpu_options(kind, &o, paused);
+            (g.anderson, g.gpu_plateau_stops)
+        };
+        assert_eq!(stops(SolverKind::Nlgs, opts(1e-4, 0), false), (0, false));
+        assert_eq!(stops(SolverKind::Nlgs, opts(1e-3, 5), true), (0, false), "paused mixing");
+        assert_eq!(stops(SolverKind::Nlgs, opts(5e-5, 0), false), (0, true), "near the f32 floor");
+        assert_eq!(stops(SolverKind::Nlgs, opts(1e-4, 5), false), (5, true), "mixed");
+        assert_eq!(stops(SolverKind::Pcpg, opts(1e-4, 0), false), (0, true));
+        // Below the f32 floor the GPU part stops at the floor.
+        assert_eq!(gpu_options(SolverKind::Nlgs, &opts(1e-8, 0), false).tol, F32_FLOOR);
     }
 
     /// A stall pauses the mixing of the next solves, 8 at first, twice as many after each retry
