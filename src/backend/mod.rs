@@ -110,14 +110,24 @@ struct MixingPause {
 
 impl Clone for MixingPause {
     fn clone(&self) -> Self {
-        Self {
-            left: AtomicUsize::new(self.left.load(Atomic::Relaxed)),
-            length: AtomicUsize::new(self.length.load(Atomic::Relaxed)),
-        }
+        let copy = Self::default();
+        copy.set(self.state());
+        copy
     }
 }
 
 impl MixingPause {
+    /// Solves still to run plain, and the pause's length.
+    fn state(&self) -> [usize; 2] {
+        [self.left.load(Atomic::Relaxed), self.length.load(Atomic::Relaxed)]
+    }
+
+    /// Takes up a state as [`Self::state`] gives it.
+    fn set(&self, [left, length]: [usize; 2]) {
+        self.left.store(left, Atomic::Relaxed);
+        self.length.store(length, Atomic::Relaxed);
+    }
+
     /// Whether this solve runs plain, counting it: the solves left after it, if so.
     fn take(&self) -> Option<usize> {
         let left = self.left.load(Atomic::Relaxed);
@@ -134,8 +144,7 @@ impl MixingPause {
             (true, 0) => PAUSE_FIRST,
             (true, last) => (2 * last).min(PAUSE_MAX),
         };
-        self.length.store(length, Atomic::Relaxed);
-        self.left.store(length, Atomic::Relaxed);
+        self.set([length, length]);
     }
 }
 
@@ -191,32 +200,36 @@ pub fn gpu_omits(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
 }
 
 impl Backend {
+    /// `device`, chosen for `reason`, with no paused mixing.
+    fn on(device: Device, reason: String) -> Self {
+        Self { device, reason, pause: MixingPause::default() }
+    }
+
     /// The CPU, f64.
     pub fn cpu() -> Self {
-        Self { device: Device::Cpu, reason: "asked for".into(), pause: MixingPause::default() }
+        Self::on(Device::Cpu, "asked for".into())
     }
 
     /// The CPU, chosen for `reason` (said by [`Self::describe`]).
     pub fn cpu_because(reason: impl Into<String>) -> Self {
-        Self { device: Device::Cpu, reason: reason.into(), pause: MixingPause::default() }
+        Self::on(Device::Cpu, reason.into())
     }
 
     /// The paused GPU mixing: solves still to sweep plain, and the pause's length (for a
     /// checkpoint; see `MixingPause`).
     pub fn mixing_pause(&self) -> [usize; 2] {
-        [self.pause.left.load(Atomic::Relaxed), self.pause.length.load(Atomic::Relaxed)]
+        self.pause.state()
     }
 
     /// Takes up a paused mixing as [`Self::mixing_pause`] gave it (a restored checkpoint, or
     /// another backend of the same simulation).
-    pub fn set_mixing_pause(&self, [left, length]: [usize; 2]) {
-        self.pause.left.store(left, Atomic::Relaxed);
-        self.pause.length.store(length, Atomic::Relaxed);
+    pub fn set_mixing_pause(&self, pause: [usize; 2]) {
+        self.pause.set(pause);
     }
 
     /// This GPU context.
     pub fn gpu(ctx: GpuContext) -> Self {
-        Self { device: Device::Gpu(Arc::new(ctx)), reason: "asked for".into(), pause: MixingPause::default() }
+        Self::on(Device::Gpu(Arc::new(ctx)), "asked for".into())
     }
 
     /// Decides where solves of `kind` with `opts` run, before any work: `cpu`; `gpu` (a hardware
@@ -264,7 +277,7 @@ impl Backend {
             DeviceChoice::Gpu if rolling => return Err(BackendError::Refused(ROLLING_ON_CPU.into())),
             _ => {}
         }
-        let cpu = |reason: String| Ok(Self { device: Device::Cpu, reason, pause: MixingPause::default() });
+        let cpu = |reason: String| Ok(Self::on(Device::Cpu, reason));
         match choice {
             DeviceChoice::Cpu => Ok(Self::cpu()),
             DeviceChoice::Gpu => {
@@ -278,7 +291,7 @@ impl Backend {
                     "asked for".into()
                 };
                 let reason = with_omission(reason, kind, opts);
-                Ok(Self { device: Device::Gpu(Arc::new(ctx)), reason, pause: MixingPause::default() })
+                Ok(Self::on(Device::Gpu(Arc::new(ctx)), reason))
             }
             DeviceChoice::Auto => {
                 if let Some(why) = gpu_refusal(kind, opts) {
@@ -296,11 +309,9 @@ impl Backend {
                     ));
                 }
                 match GpuContext::hardware() {
-                    Ok(ctx) => Ok(Self {
-                        device: Device::Gpu(Arc::new(ctx)),
-                        reason: with_omission("hardware GPU found".into(), kind, opts),
-                        pause: MixingPause::default(),
-                    }),
+                    Ok(ctx) => {
+                        Ok(Self::on(Device::Gpu(Arc::new(ctx)), with_omission("hardware GPU found".into(), kind, opts)))
+                    }
                     Err(e) => cpu(e.to_string()),
                 }
             }
@@ -661,7 +672,7 @@ mod tests {
         let backend = Backend::gpu(ctx);
         let p = lattice_packing(30, 15, 0.5, 2);
         let opts = SolverOptions { tol: 1e-5, max_iter: 50_000, anderson: 5, ..Default::default() };
-        backend.pause.left.store(2, Atomic::Relaxed);
+        backend.set_mixing_pause([2, 8]);
         let mixed_note = "Anderson acceleration over 5 sweeps (on the GPU)";
         for left in [1, 0] {
             let r = backend.solve(&p, SolverKind::Nlgs, &opts, None).unwrap();
