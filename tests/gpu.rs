@@ -230,8 +230,14 @@ fn the_gpu_stops_on_the_velocity_test_as_the_cpu_does() {
         assert!(velocity.converged, "{kind}: {}", velocity.stop_reason);
         assert_eq!(velocity.judged_error, worst(&velocity.r, &velocity.u), "{kind}: judged in f64 on what it returns");
         assert!(velocity.judged_error <= 1e-4);
-        assert!(worst(&natural.r, &natural.u) > 1e-4, "{kind}: the natural test alone should miss it");
-        assert!(velocity.iterations > natural.iterations, "{kind}");
+        // NLGS meets the natural test thousands of sweeps before the velocity test (1e-2 against
+        // 1e-4). PCPG converges within a few dozen iterations either way: whether its natural
+        // stop misses the velocity test depends on where the checks fall, not on the criterion.
+        if kind == SolverKind::Nlgs {
+            assert!(worst(&natural.r, &natural.u) > 1e-4, "{kind}: the natural test alone should miss it");
+            assert!(velocity.iterations > natural.iterations, "{kind}");
+        }
+        assert!(velocity.iterations >= natural.iterations, "{kind}");
     }
 }
 
@@ -953,4 +959,46 @@ fn buffers_read_back_together_are_each_read_back_alone() {
     let bytes: Vec<u8> = (0..8).collect();
     let [odd] = read_back_each::<u8, 1>(&ctx, [(&storage(&ctx, "bytes", &bytes), 5)]).unwrap();
     assert_eq!(odd, &bytes[..5]);
+}
+
+/// A read submitted with [`submit_and_read`] brings back the bytes as they were at its
+/// submission, though work queued after it changes them before it is waited for.
+#[test]
+fn a_pending_read_sees_its_submission_not_the_work_queued_after_it() {
+    use moreau::gpu::kernels::{read_back, storage, submit, submit_and_read};
+    let Some(ctx) = common::gpu_context() else { return };
+    let before: Vec<u32> = (0..513).collect();
+    let after: Vec<u32> = before.iter().map(|k| 1000 + k).collect();
+    let buffer = storage(&ctx, "changing", &before);
+    let copy = storage(&ctx, "copy", &vec![0u32; before.len()]);
+    let bytes = 4 * before.len();
+    let pending = submit_and_read(&ctx, "read", |_| {}, &[(&buffer, &copy, bytes as u64)], &[(&buffer, bytes)]);
+    ctx.queue.write_buffer(&buffer, 0, bytemuck::cast_slice(&after));
+    submit(&ctx, "later", |_| {});
+    let parts = pending.wait(&ctx).unwrap();
+    assert_eq!(bytemuck::pod_collect_to_vec::<u8, u32>(&parts[0]), before, "the read came back as submitted");
+    assert_eq!(read_back::<u32>(&ctx, &copy, before.len()).unwrap(), before, "the GPU-side copy too");
+    assert_eq!(read_back::<u32>(&ctx, &buffer, after.len()).unwrap(), after, "the later work did run");
+}
+
+/// The GPU queues its next batch of sweeps before waiting for a check's numbers; a solve that
+/// stops at a check returns that check's impulses, not those of the batch queued past it: the
+/// same solve capped at its reported iterations (no batch queued past its last check) returns
+/// the same bits.
+#[test]
+fn a_gpu_solve_returns_the_impulses_of_its_last_check_not_of_the_batch_queued_past_it() {
+    let Some(ctx) = common::gpu_context() else { return };
+    let p = lattice_packing(20, 10, 0.3, 3);
+    let opts = SolverOptions { tol: 1e-5, max_iter: 20_000, ..SolverOptions::default() };
+    let solved = moreau::gpu::solve(&ctx, &p, SolverKind::Nlgs, &opts, None).unwrap();
+    assert!(solved.converged, "{}", solved.stop_reason);
+    let queued_past = solved.notes.iter().find(|n| n.contains("queued past the last check")).expect("the note");
+    assert!(!queued_past.contains("; 0 iterations"), "a batch was queued past the converged check: {queued_past}");
+    let capped = SolverOptions { max_iter: solved.iterations, ..opts.clone() };
+    let again = moreau::gpu::solve(&ctx, &p, SolverKind::Nlgs, &capped, None).unwrap();
+    assert_eq!(again.iterations, solved.iterations);
+    assert!(again.notes.iter().any(|n| n.contains("; 0 iterations queued past")), "{:?}", again.notes);
+    let differing = again.r.iter().zip(&solved.r).filter(|(a, b)| a != b).count();
+    assert_eq!(differing, 0, "the returned impulses are those judged at the last check");
+    assert_eq!(solved.judged_error, again.judged_error);
 }

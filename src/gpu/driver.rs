@@ -8,12 +8,17 @@
 //! error stops improving below 1e-3 (a plateau where f32 may be the limit, reported). K doubles
 //! while the error is more than 100 × tol away; near tol it starts again at 16 and doubles up to
 //! 128 while the error stays near.
+//!
+//! A check's numbers take a round trip (submit, wait, map) that costs dozens of sweeps on a
+//! hardware GPU. The next batch is queued before they are waited for, so the GPU sweeps while
+//! they travel, and each check keeps a copy of the impulses it judged: a solve that stops at a
+//! check returns those, and the batch queued past it is dropped (the notes count its iterations).
 
 use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
 use super::cpu::velocity_residual::n_groups as velocity_groups;
-use super::kernels::{bind, dispatch, groups, read_back, read_back_each, storage, submit};
+use super::kernels::{bind, dispatch, groups, read_back, storage, submit, submit_and_read, PendingRead};
 use super::layout::to_f64;
 use super::operator::{GpuOperator, GpuProblem};
 use super::pool::{BindGroup, GpuBuffer};
@@ -65,7 +70,6 @@ pub fn iterate(
     products_per_iteration: usize,
     record: impl Fn(&mut wgpu::ComputePass),
 ) -> Result<SolveReport, GpuError> {
-    let nc = p.n_contacts();
     let checker = Checker::new(ctx, p, gp, r_buf, opts.criterion);
     let measure = JudgedMeasure::new(p, opts.criterion);
     let judge = |r: &[f64]| {
@@ -79,80 +83,109 @@ pub fn iterate(
     let mut iterations = 0usize;
     let (mut batch, mut near) = (8usize, false);
     let mut checks = GpuChecks::default();
-    let (stop, stop_reason);
-    loop {
-        if error <= opts.tol {
-            (stop, stop_reason) =
-                (StopReason::Converged, format!("converged: error {error:.3e} <= tol {:.1e}", opts.tol));
-            break;
-        }
-        if iterations >= opts.max_iter {
-            (stop, stop_reason) = (StopReason::MaxIter, format!("not converged: max_iter = {} reached", opts.max_iter));
-            break;
-        }
-        if let Some(mark) =
-            stall.stalled(iterations).filter(|&mark| opts.gpu_plateau_stops && mark <= F32_PLATEAU_CEILING)
-        {
-            (stop, stop_reason) = (
-                StopReason::Stalled,
-                // A plateau of the f32 iteration: its floor on this problem, or a slow stretch
-                // that f64 may get past; the mixed-precision finish tells which.
-                format!("not converged: stalled near {mark:.3e} (no 1 % gain in f32 for as many iterations as the last gain took)"),
-            );
-            break;
-        }
-        let k = batch.min(opts.max_iter - iterations);
+    let run_batch = |k: usize| {
         submit(ctx, kind.name(), |pass| {
             for _ in 0..k {
                 record(pass);
             }
-        });
-        iterations += k;
-        let estimate = checker.estimate(ctx)?;
-        if !estimate.is_finite() {
-            (stop, stop_reason) = (StopReason::Diverged, "diverged: non-finite impulses".to_string());
-            break;
+        })
+    };
+    let stop_at = |error: f64, iterations: usize, stall: &StallWatch| {
+        if error <= opts.tol {
+            return Some((StopReason::Converged, format!("converged: error {error:.3e} <= tol {:.1e}", opts.tol)));
         }
-        // Near the tolerance the f32 estimate is not trusted either way: judge in f64.
-        let exact = estimate <= 2.0 * opts.tol;
-        checks.estimates += 1;
-        if exact {
-            let judging = Instant::now();
-            r = to_f64(&read_back::<[f32; 2]>(ctx, r_buf, nc).map_err(GpuError::Runtime)?);
-            // Judge what would be returned: f32 impulses (and APGD's lagging box) landed on the f64 cone.
-            land_on_cone(p, &mut r);
-            error = judge(&r).0;
-            checks.judged += 1;
-            checks.judge_seconds += judging.elapsed().as_secs_f64();
-        } else {
-            error = estimate;
+        if iterations >= opts.max_iter {
+            return Some((StopReason::MaxIter, format!("not converged: max_iter = {} reached", opts.max_iter)));
         }
-        history.push(HistoryPoint {
-            iteration: iterations,
-            seconds: start.elapsed().as_secs_f64(),
-            w_products: products_per_iteration * iterations + 1,
-            error,
-        });
-        stall.record(iterations, error);
-        if exact && error < best {
-            best = error;
-            best_r.clone_from(&r);
+        // A plateau of the f32 iteration: its floor on this problem, or a slow stretch that f64
+        // may get past; the mixed-precision finish tells which.
+        stall.stalled(iterations).filter(|&mark| opts.gpu_plateau_stops && mark <= F32_PLATEAU_CEILING).map(|mark| {
+            (
+                StopReason::Stalled,
+                format!("not converged: stalled near {mark:.3e} (no 1 % gain in f32 for as many iterations as the last gain took)"),
+            )
+        })
+    };
+    // Whether `r` holds the last check's impulses, judged.
+    let mut judged_last = true;
+    // Iterations run past the check that stopped the solve (their impulses are not returned).
+    let mut discarded = 0;
+    let (stop, stop_reason) = match stop_at(error, 0, &stall) {
+        Some(stop) => stop,
+        None => {
+            let first = batch.min(opts.max_iter);
+            run_batch(first);
+            let mut in_flight = (checker.submit(ctx, error <= 10.0 * opts.tol), first);
+            loop {
+                let (check, at) = in_flight;
+                // The next batch is queued before the check's numbers are waited for: the GPU
+                // sweeps while they travel back and the CPU reads them.
+                let ahead = batch.min(opts.max_iter - at);
+                if ahead > 0 {
+                    run_batch(ahead);
+                }
+                let (estimate, impulses) = checker.finish(ctx, check)?;
+                iterations = at;
+                if !estimate.is_finite() {
+                    discarded = ahead;
+                    judged_last = false;
+                    break (StopReason::Diverged, "diverged: non-finite impulses".to_string());
+                }
+                // Near the tolerance the f32 estimate is not trusted either way: judge in f64.
+                judged_last = estimate <= 2.0 * opts.tol;
+                checks.estimates += 1;
+                if judged_last {
+                    let judging = Instant::now();
+                    let impulses = match impulses {
+                        Some(r32) => r32,
+                        None => checker.snapshot(ctx)?,
+                    };
+                    r = to_f64(&impulses);
+                    // Judge what would be returned: f32 impulses (and APGD's lagging box) landed on the f64 cone.
+                    land_on_cone(p, &mut r);
+                    error = judge(&r).0;
+                    checks.judged += 1;
+                    checks.judge_seconds += judging.elapsed().as_secs_f64();
+                } else {
+                    error = estimate;
+                }
+                history.push(HistoryPoint {
+                    iteration: iterations,
+                    seconds: start.elapsed().as_secs_f64(),
+                    w_products: products_per_iteration * iterations + 1,
+                    error,
+                });
+                stall.record(iterations, error);
+                if judged_last && error < best {
+                    best = error;
+                    best_r.clone_from(&r);
+                }
+                // Far from the tolerance, read back less often. Near it, every 16 iterations at
+                // first, then less often the longer the error stays near (up to every 128): a
+                // check costs a sync and a product, dozens of sweeps on a GPU, and a solve that
+                // hovers near tol for thousands of sweeps would spend most of its time checking;
+                // the sweeps run past the point tol is met stay fewer than those already spent near it.
+                batch = match (error > 100.0 * opts.tol, near) {
+                    (true, _) => (2 * batch).min(512),
+                    (false, false) => 16,
+                    (false, true) => (2 * batch).clamp(16, 128),
+                };
+                near = error <= 100.0 * opts.tol;
+                if let Some(stop) = stop_at(error, iterations, &stall) {
+                    discarded = ahead;
+                    break stop;
+                }
+                // Within 10 tol the impulses come back with the sums: a judgement is likely.
+                in_flight = (checker.submit(ctx, error <= 10.0 * opts.tol), at + ahead);
+            }
         }
-        // Far from the tolerance, read back less often. Near it, every 16 iterations at first,
-        // then less often the longer the error stays near (up to every 128): a check costs a
-        // sync and a product, dozens of sweeps on a GPU, and a solve that hovers near tol for
-        // thousands of sweeps would spend most of its time checking; the sweeps run past the
-        // point tol is met stay fewer than those already spent near it.
-        batch = match (error > 100.0 * opts.tol, near) {
-            (true, _) => (2 * batch).min(512),
-            (false, false) => 16,
-            (false, true) => (2 * batch).clamp(16, 128),
-        };
-        near = error <= 100.0 * opts.tol;
+    };
+    // The last check's impulses (the GPU's buffer may hold a discarded batch past them), judged
+    // in f64; the best f64-judged ones if those were better.
+    if !judged_last {
+        r = to_f64(&checker.snapshot(ctx)?);
+        land_on_cone(p, &mut r);
     }
-    // The impulses the GPU holds now, judged in f64; the best f64-judged ones if those were better.
-    let mut r = to_f64(&read_back::<[f32; 2]>(ctx, r_buf, nc).map_err(GpuError::Runtime)?);
-    land_on_cone(p, &mut r);
     let (mut judged, mut error, mut u) = judge(&r);
     if (judged.is_nan() || judged > best) && best.is_finite() {
         r = best_r;
@@ -177,7 +210,8 @@ pub fn iterate(
         },
         stop_reason,
         notes: vec![format!(
-            "{} error estimates on the GPU, {} of them judged in f64 on the CPU ({:.1} ms)",
+            "{} error estimates on the GPU, {} of them judged in f64 on the CPU ({:.1} ms); {discarded} \
+             iterations queued past the last check and not used",
             checks.estimates,
             checks.judged,
             1e3 * checks.judge_seconds
@@ -207,7 +241,20 @@ struct Checker {
     gap_norm: f64,
     groups: u32,
     velocity: Option<VelocityEstimate>,
+    r_buf: GpuBuffer,
+    /// The impulses at the last check, kept while the next batch runs.
+    snapshot: GpuBuffer,
+    contacts: usize,
     _buffers: Vec<GpuBuffer>,
+}
+
+/// Impulses as the GPU holds them.
+type F32Impulses = Vec<[f32; 2]>;
+
+/// A check on its way back.
+struct PendingCheck {
+    read: PendingRead,
+    with_impulses: bool,
 }
 
 /// The velocity test's estimate: `velocity_residual` over the checker's `u`.
@@ -252,39 +299,78 @@ impl Checker {
             VelocityEstimate { residual, partials, groups, scale: free_velocity_bound(&p.q, &p.gap_rate), _c: c }
         });
         let _buffers = vec![u, f, partials];
-        Self { operator, kernels, residual, dots, scalars, q_norm, gap_norm, groups: groups(nc), velocity, _buffers }
+        let snapshot = storage(ctx, "r at check", &vec![[0.0f32; 2]; nc]);
+        Self {
+            operator,
+            kernels,
+            residual,
+            dots,
+            scalars,
+            q_norm,
+            gap_norm,
+            groups: groups(nc),
+            velocity,
+            r_buf: r_buf.clone(),
+            snapshot,
+            contacts: nc,
+            _buffers,
+        }
     }
 
-    fn estimate(&self, ctx: &GpuContext) -> Result<f64, GpuError> {
+    /// Submits the estimate of the impulses the solver's buffer holds now, keeping a copy of them
+    /// on the GPU ([`Checker::snapshot`]); `with_impulses`: they come back with the sums.
+    fn submit(&self, ctx: &GpuContext, with_impulses: bool) -> PendingCheck {
         let k = &self.kernels;
-        submit(ctx, "check", |pass| {
-            self.operator.record(k, pass);
-            dispatch(pass, &k.natural_map, &self.residual, self.groups);
-            for d in &self.dots {
-                d.record(k, pass);
-            }
-            if let Some(v) = &self.velocity {
-                dispatch(pass, &k.velocity_residual, &v.residual, v.groups as u32);
-            }
-        });
-        // Under the velocity test its partials come back with the three sums, in one wait.
-        let (s, worst) = match &self.velocity {
-            None => (read_back::<f32>(ctx, &self.scalars, 3).map_err(GpuError::Runtime)?, Vec::new()),
-            Some(v) => {
-                let [s, worst] = read_back_each::<f32, 2>(ctx, [(&self.scalars, 3), (&v.partials, v.groups)])
-                    .map_err(GpuError::Runtime)?;
-                (s, worst)
-            }
-        };
+        let mut reads = vec![(&*self.scalars, 3 * 4)];
+        if let Some(v) = &self.velocity {
+            reads.push((&*v.partials, 4 * v.groups));
+        }
+        if with_impulses {
+            reads.push((&*self.r_buf, 8 * self.contacts));
+        }
+        // (wgpu copies no empty range)
+        let snapshot = [(&*self.r_buf, &*self.snapshot, 8 * self.contacts as u64)];
+        let snapshot = if self.contacts > 0 { &snapshot[..] } else { &[] };
+        let read = submit_and_read(
+            ctx,
+            "check",
+            |pass| {
+                self.operator.record(k, pass);
+                dispatch(pass, &k.natural_map, &self.residual, self.groups);
+                for d in &self.dots {
+                    d.record(k, pass);
+                }
+                if let Some(v) = &self.velocity {
+                    dispatch(pass, &k.velocity_residual, &v.residual, v.groups as u32);
+                }
+            },
+            snapshot,
+            &reads,
+        );
+        PendingCheck { read, with_impulses }
+    }
+
+    /// Waits for a submitted check: its estimate, and the impulses if they came back.
+    fn finish(&self, ctx: &GpuContext, check: PendingCheck) -> Result<(f64, Option<F32Impulses>), GpuError> {
+        let mut parts = check.read.wait(ctx).map_err(GpuError::Runtime)?.into_iter();
+        let floats = |bytes: Vec<u8>| bytemuck::pod_collect_to_vec::<u8, f32>(&bytes);
+        let s = floats(parts.next().unwrap_or_default());
+        let worst = self.velocity.as_ref().map(|_| floats(parts.next().unwrap_or_default()));
+        let impulses = check.with_impulses.then(|| bytemuck::pod_collect_to_vec(&parts.next().unwrap_or_default()));
         let (f, r, u) = ((s[0] as f64).sqrt(), (s[1] as f64).sqrt(), (s[2] as f64).sqrt());
         let scale = self.q_norm.max(r).max(u - self.gap_norm);
         let natural = if scale > f64::EPSILON { f / scale } else { f };
-        let Some(v) = &self.velocity else { return Ok(natural) };
+        let (Some(v), Some(worst)) = (&self.velocity, worst) else { return Ok((natural, impulses)) };
         // The sums carry a NaN that a maximum may drop: a diverged iterate shows there.
         if !natural.is_finite() {
-            return Ok(natural);
+            return Ok((natural, impulses));
         }
         let worst = worst.iter().fold(0.0f64, |m, &x| m.max(x as f64));
-        Ok(if v.scale > f64::EPSILON { worst / v.scale } else { worst })
+        Ok((if v.scale > f64::EPSILON { worst / v.scale } else { worst }, impulses))
+    }
+
+    /// The impulses of the last submitted check, read back (waits for all queued work).
+    fn snapshot(&self, ctx: &GpuContext) -> Result<F32Impulses, GpuError> {
+        read_back::<[f32; 2]>(ctx, &self.snapshot, self.contacts).map_err(GpuError::Runtime)
     }
 }

@@ -351,37 +351,75 @@ pub fn read_back_each<T: bytemuck::Pod, const N: usize>(
     buffers: [(&wgpu::Buffer, usize); N],
 ) -> Result<[Vec<T>; N], String> {
     let item = std::mem::size_of::<T>();
+    let parts =
+        submit_and_read(ctx, "read back", |_| {}, &[], &buffers.map(|(b, count)| (b, count * item))).wait(ctx)?;
+    Ok(std::array::from_fn(|k| bytemuck::pod_collect_to_vec::<u8, T>(&parts[k])))
+}
+
+/// Bytes on their way back from the GPU: one staging buffer filled by one submission, which
+/// [`PendingRead::wait`] waits for alone, so work submitted after it keeps the GPU busy meanwhile.
+pub struct PendingRead {
+    staging: GpuBuffer,
+    /// Each part's bytes and its offset in the staging buffer.
+    parts: Vec<(usize, u64)>,
+    total: u64,
+    index: wgpu::SubmissionIndex,
+}
+
+/// Submits one compute pass (`record`), then the GPU-side copies `copies` (source, destination,
+/// bytes), then copies `reads` (buffer, bytes) into a staging buffer, all as one submission.
+pub fn submit_and_read(
+    ctx: &GpuContext,
+    label: &str,
+    record: impl FnOnce(&mut wgpu::ComputePass),
+    copies: &[(&wgpu::Buffer, &wgpu::Buffer, u64)],
+    reads: &[(&wgpu::Buffer, usize)],
+) -> PendingRead {
     // Each part at a 4-byte multiple (wgpu's copy alignment), at least 4 bytes.
-    let sizes = buffers.map(|(_, count)| ((count * item).max(4) as u64).next_multiple_of(4));
+    let sizes: Vec<u64> = reads.iter().map(|&(_, bytes)| (bytes.max(4) as u64).next_multiple_of(4)).collect();
     let total: u64 = sizes.iter().sum();
     let staging =
         ctx.pool.take(&ctx.device, "read back", wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST, total);
-    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-    let mut offset = 0;
-    for ((buffer, _), size) in buffers.iter().zip(sizes) {
+    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+    {
+        let mut pass =
+            encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(label), timestamp_writes: None });
+        record(&mut pass);
+    }
+    for &(from, to, bytes) in copies {
+        encoder.copy_buffer_to_buffer(from, 0, to, 0, bytes);
+    }
+    let (mut parts, mut offset) = (Vec::with_capacity(reads.len()), 0);
+    for (&(buffer, bytes), size) in reads.iter().zip(sizes) {
         // A buffer shorter than the rounded size (a pooled one is never) would fail validation.
         encoder.copy_buffer_to_buffer(buffer, 0, &staging, offset, size.min(buffer.size()));
+        parts.push((bytes, offset));
         offset += size;
     }
     traffic::downloaded(total as usize);
-    ctx.queue.submit([encoder.finish()]);
-    let slice = staging.slice(..total);
-    let (tx, rx) = std::sync::mpsc::channel();
-    slice.map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| e.to_string())?;
-    rx.recv().map_err(|e| e.to_string())?.map_err(|e| e.to_string())?;
-    let data = slice.get_mapped_range().map_err(|e| format!("{e:?}"))?;
-    let mut offset = 0;
-    let out = std::array::from_fn(|k| {
-        let part = &data[offset..offset + buffers[k].1 * item];
-        offset += sizes[k] as usize;
-        bytemuck::pod_collect_to_vec::<u8, T>(part)
-    });
-    drop(data);
-    staging.unmap();
-    Ok(out)
+    let index = ctx.queue.submit([encoder.finish()]);
+    PendingRead { staging, parts, total, index }
+}
+
+impl PendingRead {
+    /// Waits for the submission that filled the staging buffer (not for later ones) and returns
+    /// each part's bytes.
+    pub fn wait(self, ctx: &GpuContext) -> Result<Vec<Vec<u8>>, String> {
+        let slice = self.staging.slice(..self.total);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        let wait = wgpu::PollType::Wait { submission_index: Some(self.index), timeout: None };
+        ctx.device.poll(wait).map_err(|e| e.to_string())?;
+        rx.recv().map_err(|e| e.to_string())?.map_err(|e| e.to_string())?;
+        let data = slice.get_mapped_range().map_err(|e| format!("{e:?}"))?;
+        let out =
+            self.parts.iter().map(|&(bytes, offset)| data[offset as usize..offset as usize + bytes].to_vec()).collect();
+        drop(data);
+        self.staging.unmap();
+        Ok(out)
+    }
 }
 
 #[cfg(test)]
