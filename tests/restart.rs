@@ -250,7 +250,10 @@ fn a_checkpoint_carries_the_paused_gpu_mixing() {
     };
     let mut sim = load();
     sim.step().unwrap();
-    sim.backend().set_mixing_pause([3, 8]);
+    sim.backend().set_mixing_pause([3, 8]).unwrap();
+    let refused = sim.backend().set_mixing_pause([3, 65]).unwrap_err();
+    assert!(refused.contains("mixing_pause [3, 65]"), "{refused}");
+    assert_eq!(sim.backend().mixing_pause(), [3, 8], "a refused pause changes nothing");
     let c = sim.checkpoint();
     assert_eq!(c.mixing_pause, [3, 8]);
     let mut other = load();

@@ -122,6 +122,14 @@ impl MixingPause {
         [self.left.load(Atomic::Relaxed), self.length.load(Atomic::Relaxed)]
     }
 
+    /// Why `[left, length]` is no state a pause can reach (solves left above the pause, or a
+    /// pause above [`PAUSE_MAX`]), if it is not.
+    fn impossible([left, length]: [usize; 2]) -> Option<String> {
+        (left > length || length > PAUSE_MAX).then(|| {
+            format!("mixing_pause [{left}, {length}]: solves left above the pause, or a pause above {PAUSE_MAX}")
+        })
+    }
+
     /// Takes up a state as [`Self::state`] gives it.
     fn set(&self, [left, length]: [usize; 2]) {
         self.left.store(left, Atomic::Relaxed);
@@ -222,9 +230,16 @@ impl Backend {
     }
 
     /// Takes up a paused mixing as [`Self::mixing_pause`] gave it (a restored checkpoint, or
-    /// another backend of the same simulation).
-    pub fn set_mixing_pause(&self, pause: [usize; 2]) {
+    /// another backend of the same simulation); a state no pause reaches is refused, named.
+    pub fn set_mixing_pause(&self, pause: [usize; 2]) -> Result<(), String> {
+        Self::check_mixing_pause(pause)?;
         self.pause.set(pause);
+        Ok(())
+    }
+
+    /// Whether `pause` is a state [`Self::mixing_pause`] can give (why not, if not).
+    pub fn check_mixing_pause(pause: [usize; 2]) -> Result<(), String> {
+        MixingPause::impossible(pause).map_or(Ok(()), Err)
     }
 
     /// This GPU context.
@@ -672,7 +687,7 @@ mod tests {
         let backend = Backend::gpu(ctx);
         let p = lattice_packing(30, 15, 0.5, 2);
         let opts = SolverOptions { tol: 1e-5, max_iter: 50_000, anderson: 5, ..Default::default() };
-        backend.set_mixing_pause([2, 8]);
+        backend.set_mixing_pause([2, 8]).unwrap();
         let mixed_note = "Anderson acceleration over 5 sweeps (on the GPU)";
         for left in [1, 0] {
             let r = backend.solve(&p, SolverKind::Nlgs, &opts, None).unwrap();

@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use super::warm_start::{Key, WarmStart};
 use super::{Simulation, StepError};
+use crate::backend::Backend;
 use crate::detection::Antagonist;
 
 /// The state of a [`Simulation`] between two steps (serialisable: `io::checkpoint` writes it).
@@ -193,12 +194,8 @@ impl Simulation {
                 return refuse(why);
             }
         }
-        let [left, length] = c.mixing_pause;
-        if left > length || length > crate::backend::PAUSE_MAX {
-            return refuse(format!(
-                "mixing_pause [{left}, {length}]: solves left above the pause, or a pause above {}",
-                crate::backend::PAUSE_MAX
-            ));
+        if let Err(why) = Backend::check_mixing_pause(c.mixing_pause) {
+            return refuse(why);
         }
         let entries =
             keys.into_iter().zip(c.contacts.iter().map(|x| [x.impulse[0], x.impulse[1], x.rolling])).collect();
@@ -211,7 +208,8 @@ impl Simulation {
             (wall.center, wall.angle, wall.velocity, wall.spin) = (s.center.into(), s.angle, s.velocity.into(), s.spin);
         }
         self.warm_start = WarmStart::from_parts(entries, colours);
-        self.backend.set_mixing_pause(c.mixing_pause);
+        // Checked above, before anything was changed.
+        let _ = self.backend.set_mixing_pause(c.mixing_pause);
         (self.time, self.step_index) = (c.time, c.steps_done);
         self.contacts.clear();
         self.forces.clear();

@@ -317,7 +317,8 @@ impl Simulation {
             return Err(StepError::Settings(crate::backend::ROLLING_ON_CPU.into()));
         }
         // The pause of a stalled GPU mixing follows the simulation's solves, not the device.
-        backend.set_mixing_pause(self.backend.mixing_pause());
+        // The state of another backend: one a pause reaches.
+        let _ = backend.set_mixing_pause(self.backend.mixing_pause());
         self.backend = backend;
         Ok(())
     }
@@ -331,7 +332,8 @@ impl Simulation {
         let backend = Backend::choose_for_scene(choice, self.settings.solver, &self.settings.options, rolling, bodies)
             .map_err(|e| StepError::Settings(e.to_string()))?;
         let line = backend.describe();
-        backend.set_mixing_pause(self.backend.mixing_pause());
+        // The state of another backend: one a pause reaches.
+        let _ = backend.set_mixing_pause(self.backend.mixing_pause());
         self.backend = backend;
         Ok(line)
     }
