@@ -108,8 +108,6 @@ pub fn iterate(
     };
     // Whether `r` holds the last check's impulses, judged.
     let mut judged_last = true;
-    // Iterations run past the check that stopped the solve (their impulses are not returned).
-    let mut discarded = 0;
     let (stop, stop_reason) = match stop_at(error, 0, &stall) {
         Some(stop) => stop,
         None => {
@@ -127,7 +125,7 @@ pub fn iterate(
                 let (estimate, impulses) = checker.finish(ctx, check)?;
                 iterations = at;
                 if !estimate.is_finite() {
-                    discarded = ahead;
+                    checks.discarded = ahead;
                     judged_last = false;
                     break (StopReason::Diverged, "diverged: non-finite impulses".to_string());
                 }
@@ -172,7 +170,8 @@ pub fn iterate(
                 };
                 near = error <= 100.0 * opts.tol;
                 if let Some(stop) = stop_at(error, iterations, &stall) {
-                    discarded = ahead;
+                    // Run past this check and not used: its impulses are returned.
+                    checks.discarded = ahead;
                     break stop;
                 }
                 // Within 10 tol the impulses come back with the sums: a judgement is likely.
@@ -210,11 +209,12 @@ pub fn iterate(
         },
         stop_reason,
         notes: vec![format!(
-            "{} error estimates on the GPU, {} of them judged in f64 on the CPU ({:.1} ms); {discarded} \
+            "{} error estimates on the GPU, {} of them judged in f64 on the CPU ({:.1} ms); {} \
              iterations queued past the last check and not used",
             checks.estimates,
             checks.judged,
-            1e3 * checks.judge_seconds
+            1e3 * checks.judge_seconds,
+            checks.discarded
         )],
         parts: Vec::new(),
         gpu_dispatches: 0,

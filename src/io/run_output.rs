@@ -42,6 +42,7 @@ struct Row {
     gpu_estimates: usize,
     gpu_judged: usize,
     gpu_judge_seconds: f64,
+    gpu_discarded: usize,
 }
 
 /// One row of `walls.csv`: a wall's position and the grains' mean force and moment on it.
@@ -334,6 +335,7 @@ impl RunOutput {
             gpu_estimates: r.gpu_checks.estimates,
             gpu_judged: r.gpu_checks.judged,
             gpu_judge_seconds: r.gpu_checks.judge_seconds,
+            gpu_discarded: r.gpu_checks.discarded,
         })?;
         Ok(())
     }

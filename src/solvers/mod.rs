@@ -408,9 +408,10 @@ pub struct SolvePart {
     pub stop: StopReason,
 }
 
-/// How a GPU solve checked its error between its batches of iterations: each estimate is a wait
-/// for the GPU; an estimate near the tolerance reads `r` back and judges it in f64 on the CPU.
-/// What a GPU iteration costs beyond its kernels is in these (`moreau bench --scene`).
+/// How a GPU solve checked its error between its batches of iterations: each estimate is a round
+/// trip to the GPU, overlapped by the next batch; an estimate near the tolerance reads `r` back and
+/// judges it in f64 on the CPU. What a GPU iteration costs beyond its kernels is in these
+/// (`moreau bench --scene`).
 #[derive(Clone, Copy, Debug, Default, Serialize)]
 pub struct GpuChecks {
     /// Error estimates on the GPU.
@@ -419,6 +420,8 @@ pub struct GpuChecks {
     pub judged: usize,
     /// CPU time of those judgements, read-back included (s).
     pub judge_seconds: f64,
+    /// Iterations queued past the check that stopped the solve, run and not used.
+    pub discarded: usize,
 }
 
 impl GpuChecks {
@@ -427,6 +430,7 @@ impl GpuChecks {
         self.estimates += other.estimates;
         self.judged += other.judged;
         self.judge_seconds += other.judge_seconds;
+        self.discarded += other.discarded;
     }
 }
 
