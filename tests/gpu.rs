@@ -965,14 +965,16 @@ fn buffers_read_back_together_are_each_read_back_alone() {
 /// submission, though work queued after it changes them before it is waited for.
 #[test]
 fn a_pending_read_sees_its_submission_not_the_work_queued_after_it() {
-    use moreau::gpu::kernels::{read_back, storage, submit, submit_and_read};
+    use moreau::gpu::kernels::{encode_pass, read_back, storage, submit, submit_and_read};
     let Some(ctx) = common::gpu_context() else { return };
     let before: Vec<u32> = (0..513).collect();
     let after: Vec<u32> = before.iter().map(|k| 1000 + k).collect();
     let buffer = storage(&ctx, "changing", &before);
     let copy = storage(&ctx, "copy", &vec![0u32; before.len()]);
     let bytes = 4 * before.len();
-    let pending = submit_and_read(&ctx, "read", |_| {}, &[(&buffer, &copy, bytes as u64)], &[(&buffer, bytes)]);
+    let mut encoder = encode_pass(&ctx, "read", |_| {});
+    encoder.copy_buffer_to_buffer(&buffer, 0, &copy, 0, bytes as u64);
+    let pending = submit_and_read(&ctx, encoder, &[(&buffer, bytes)]);
     ctx.queue.write_buffer(&buffer, 0, bytemuck::cast_slice(&after));
     submit(&ctx, "later", |_| {});
     let parts = pending.wait(&ctx).unwrap();

@@ -18,7 +18,7 @@ use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
 use super::cpu::velocity_residual::n_groups as velocity_groups;
-use super::kernels::{bind, dispatch, groups, read_back, storage, submit, submit_and_read, PendingRead};
+use super::kernels::{bind, dispatch, encode_pass, groups, read_back, storage, submit, submit_and_read, PendingRead};
 use super::layout::to_f64;
 use super::operator::{GpuOperator, GpuProblem};
 use super::pool::{BindGroup, GpuBuffer};
@@ -106,6 +106,8 @@ pub fn iterate(
             )
         })
     };
+    // Within 10 tol the impulses come back with a check's sums: a judgement is likely.
+    let likely_judged = |error: f64| error <= 10.0 * opts.tol;
     // Whether `r` holds the last check's impulses, judged.
     let mut judged_last = true;
     let (stop, stop_reason) = match stop_at(error, 0, &stall) {
@@ -113,7 +115,7 @@ pub fn iterate(
         None => {
             let first = batch.min(opts.max_iter);
             run_batch(first);
-            let mut in_flight = (checker.submit(ctx, error <= 10.0 * opts.tol), first);
+            let mut in_flight = (checker.submit(ctx, likely_judged(error)), first);
             loop {
                 let (check, at) = in_flight;
                 // The next batch is queued before the check's numbers are waited for: the GPU
@@ -174,8 +176,7 @@ pub fn iterate(
                     checks.discarded = ahead;
                     break stop;
                 }
-                // Within 10 tol the impulses come back with the sums: a judgement is likely.
-                in_flight = (checker.submit(ctx, error <= 10.0 * opts.tol), at + ahead);
+                in_flight = (checker.submit(ctx, likely_judged(error)), at + ahead);
             }
         }
     };
@@ -328,26 +329,21 @@ impl Checker {
         if with_impulses {
             reads.push((&*self.r_buf, 8 * self.contacts));
         }
+        let mut encoder = encode_pass(ctx, "check", |pass| {
+            self.operator.record(k, pass);
+            dispatch(pass, &k.natural_map, &self.residual, self.groups);
+            for d in &self.dots {
+                d.record(k, pass);
+            }
+            if let Some(v) = &self.velocity {
+                dispatch(pass, &k.velocity_residual, &v.residual, v.groups as u32);
+            }
+        });
         // (wgpu copies no empty range)
-        let snapshot = [(&*self.r_buf, &*self.snapshot, 8 * self.contacts as u64)];
-        let snapshot = if self.contacts > 0 { &snapshot[..] } else { &[] };
-        let read = submit_and_read(
-            ctx,
-            "check",
-            |pass| {
-                self.operator.record(k, pass);
-                dispatch(pass, &k.natural_map, &self.residual, self.groups);
-                for d in &self.dots {
-                    d.record(k, pass);
-                }
-                if let Some(v) = &self.velocity {
-                    dispatch(pass, &k.velocity_residual, &v.residual, v.groups as u32);
-                }
-            },
-            snapshot,
-            &reads,
-        );
-        PendingCheck { read, with_impulses }
+        if self.contacts > 0 {
+            encoder.copy_buffer_to_buffer(&self.r_buf, 0, &self.snapshot, 0, 8 * self.contacts as u64);
+        }
+        PendingCheck { read: submit_and_read(ctx, encoder, &reads), with_impulses }
     }
 
     /// Waits for a submitted check: its estimate, and the impulses if they came back.

@@ -283,13 +283,18 @@ pub fn bind_in_order(ctx: &GpuContext, pipeline: &wgpu::ComputePipeline, buffers
 
 /// Records one compute pass with `record` and submits it.
 pub fn submit(ctx: &GpuContext, label: &str, record: impl FnOnce(&mut wgpu::ComputePass)) {
+    ctx.queue.submit([encode_pass(ctx, label, record).finish()]);
+}
+
+/// An encoder holding one compute pass recorded by `record`, to which copies may follow.
+pub fn encode_pass(ctx: &GpuContext, label: &str, record: impl FnOnce(&mut wgpu::ComputePass)) -> wgpu::CommandEncoder {
     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
     {
         let mut pass =
             encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(label), timestamp_writes: None });
         record(&mut pass);
     }
-    ctx.queue.submit([encoder.finish()]);
+    encoder
 }
 
 /// Records one dispatch of `pipeline` over `workgroups` groups with `group` bound.
@@ -351,8 +356,8 @@ pub fn read_back_each<T: bytemuck::Pod, const N: usize>(
     buffers: [(&wgpu::Buffer, usize); N],
 ) -> Result<[Vec<T>; N], String> {
     let item = std::mem::size_of::<T>();
-    let parts =
-        submit_and_read(ctx, "read back", |_| {}, &[], &buffers.map(|(b, count)| (b, count * item))).wait(ctx)?;
+    let encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read back") });
+    let parts = submit_and_read(ctx, encoder, &buffers.map(|(b, count)| (b, count * item))).wait(ctx)?;
     Ok(std::array::from_fn(|k| bytemuck::pod_collect_to_vec::<u8, T>(&parts[k])))
 }
 
@@ -366,13 +371,11 @@ pub struct PendingRead {
     index: wgpu::SubmissionIndex,
 }
 
-/// Submits one compute pass (`record`), then the GPU-side copies `copies` (source, destination,
-/// bytes), then copies `reads` (buffer, bytes) into a staging buffer, all as one submission.
+/// Submits `encoder`'s work followed by copies of `reads` (buffer, bytes) into a staging buffer,
+/// as one submission.
 pub fn submit_and_read(
     ctx: &GpuContext,
-    label: &str,
-    record: impl FnOnce(&mut wgpu::ComputePass),
-    copies: &[(&wgpu::Buffer, &wgpu::Buffer, u64)],
+    mut encoder: wgpu::CommandEncoder,
     reads: &[(&wgpu::Buffer, usize)],
 ) -> PendingRead {
     // Each part at a 4-byte multiple (wgpu's copy alignment), at least 4 bytes.
@@ -380,15 +383,6 @@ pub fn submit_and_read(
     let total: u64 = sizes.iter().sum();
     let staging =
         ctx.pool.take(&ctx.device, "read back", wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST, total);
-    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
-    {
-        let mut pass =
-            encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(label), timestamp_writes: None });
-        record(&mut pass);
-    }
-    for &(from, to, bytes) in copies {
-        encoder.copy_buffer_to_buffer(from, 0, to, 0, bytes);
-    }
     let (mut parts, mut offset) = (Vec::with_capacity(reads.len()), 0);
     for (&(buffer, bytes), size) in reads.iter().zip(sizes) {
         // A buffer shorter than the rounded size (a pooled one is never) would fail validation.
