@@ -326,8 +326,10 @@ fn the_position_projection_sweeps_on_the_gpu_and_separates_as_on_the_cpu() {
     };
     let (cpu, gpu) = (run(None), run(Some(ctx)));
     let worst = |rs: &[moreau::stepping::StepReport]| rs.iter().map(|r| r.max_penetration).fold(0.0, f64::max);
-    let projected: Vec<_> = gpu.iter().filter(|r| r.projected > 0).collect();
-    assert!(projected.len() >= 10, "only {} GPU steps needed the projection", projected.len());
+    // Where at most 1 % of the contacts went deep the CPU's local pass projects them, no sweeps;
+    // here the grains fall in and far more do.
+    let projected: Vec<_> = gpu.iter().filter(|r| 100 * r.projected > r.contacts).collect();
+    assert!(projected.len() >= 10, "only {} GPU steps needed the projection's sweeps", projected.len());
     // At least 100 projection sweeps (one dispatch or more each) beside the solve's 4.
     for r in &projected {
         assert!(

@@ -643,3 +643,15 @@ impl MatrixFree {
         BlockSparse::from_block_triplets(self.rows.len(), triplets)
     }
 }
+
+/// Eight unit disks (mass 1, inertia 0.5) in a row on a floor, for tests: contact i joins disks
+/// i and i + 1 (0–6), contact 7 + i puts disk i on the floor.
+#[cfg(test)]
+pub(crate) fn disks_in_a_row() -> MatrixFree {
+    let bodies = vec![Body::dynamic(1.0, 0.5); 8];
+    let between =
+        |i: usize| Contact { i: i + 1, j: Some(i), normal: [1.0, 0.0], lever_i: [-1.0, 0.0], lever_j: [1.0, 0.0] };
+    let floor = |i: usize| Contact { i, j: None, normal: [0.0, 1.0], lever_i: [0.0, -1.0], lever_j: [0.0, 0.0] };
+    let contacts: Vec<Contact> = (0..7).map(between).chain((0..8).map(floor)).collect();
+    MatrixFree::new(bodies, &contacts).expect("a valid row")
+}

@@ -116,18 +116,7 @@ impl Focus {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::problem::matrix_free::{Body, Contact};
-
-    /// Eight disks in a row on a floor: contact i joins disks i and i + 1 (0–6), contact 7 + i
-    /// puts disk i on the floor.
-    fn row() -> MatrixFree {
-        let bodies = vec![Body::dynamic(1.0, 0.5); 8];
-        let between =
-            |i: usize| Contact { i: i + 1, j: Some(i), normal: [1.0, 0.0], lever_i: [-1.0, 0.0], lever_j: [1.0, 0.0] };
-        let floor = |i: usize| Contact { i, j: None, normal: [0.0, 1.0], lever_i: [0.0, -1.0], lever_j: [0.0, 0.0] };
-        let contacts: Vec<Contact> = (0..7).map(between).chain((0..8).map(floor)).collect();
-        MatrixFree::new(bodies, &contacts).unwrap()
-    }
+    use crate::problem::matrix_free::disks_in_a_row as row;
 
     #[test]
     fn the_focus_is_the_contacts_around_the_largest_changes() {
