@@ -300,6 +300,8 @@ enum Sweep<'a> {
 /// them in a sweep nearly as the sequential sweep does (81,000 contacts in 80 bands took twice
 /// the sweeps), and two colours of 8 keep 8 threads busy.
 const BLOCKS: usize = 16;
+// `block_colours` keeps blocks in bit sets.
+const _: () = assert!(BLOCKS <= 32);
 
 /// Contacts in a block at least.
 const MIN_BLOCK: usize = 1024;
@@ -314,26 +316,22 @@ const MIN_BLOCKS_PER_COLOUR: usize = 2;
 pub fn block_colours(op: &MatrixFree, nc: usize) -> Option<Vec<Vec<(usize, usize)>>> {
     let block_size = nc.div_ceil(BLOCKS).max(MIN_BLOCK);
     let blocks = nc.div_ceil(block_size);
-    let mut touching: Vec<Vec<u32>> = vec![Vec::new(); op.bodies.len()];
+    // The blocks each body touches, then each block's neighbours, as bit sets (16 blocks at most).
+    let mut touching = vec![0u32; op.bodies.len()];
     for a in 0..nc {
         for b in op.moving_bodies_of(a) {
-            let k = (a / block_size) as u32;
-            if touching[b].last() != Some(&k) {
-                touching[b].push(k);
-            }
+            touching[b] |= 1 << (a / block_size);
         }
     }
-    let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); blocks];
-    for t in &touching {
-        for &x in t {
-            neighbours[x as usize].extend(t.iter().filter(|&&y| y != x));
+    let mut neighbours = vec![0u32; blocks];
+    for &t in touching.iter().filter(|t| t.count_ones() > 1) {
+        for (k, n) in neighbours.iter_mut().enumerate().filter(|(k, _)| t & (1 << k) != 0) {
+            *n |= t & !(1 << k);
         }
     }
     let mut colour = vec![usize::MAX; blocks];
     for k in 0..blocks {
-        neighbours[k].sort_unstable();
-        neighbours[k].dedup();
-        let taken: Vec<usize> = neighbours[k].iter().map(|&j| colour[j as usize]).collect();
+        let taken: Vec<usize> = (0..blocks).filter(|&j| neighbours[k] & (1 << j) != 0).map(|j| colour[j]).collect();
         colour[k] = (0..).find(|c| !taken.contains(c)).unwrap_or(0);
     }
     let n_colours = colour.iter().max().map_or(0, |c| c + 1);
