@@ -21,16 +21,16 @@ fn library_dir() -> PathBuf {
         .get_or_init(|| {
             let exe = std::env::current_exe().unwrap();
             let dir = exe.parent().and_then(Path::parent).unwrap().to_path_buf();
-            if !dir.join("libmoreau_c.so").exists() {
-                let profile = dir.file_name().unwrap().to_str().unwrap();
-                let profile = if profile == "debug" { "dev" } else { profile };
-                let status = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
-                    .args(["build", "--lib", "-p", "moreau-capi", "--profile", profile])
-                    .current_dir(repo())
-                    .status()
-                    .expect("cargo runs");
-                assert!(status.success(), "building libmoreau_c");
-            }
+            // Built every time (a no-op when fresh): a library left by an older build would
+            // compare the C programs with another version of the library.
+            let profile = dir.file_name().unwrap().to_str().unwrap();
+            let profile = if profile == "debug" { "dev" } else { profile };
+            let status = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+                .args(["build", "--lib", "-p", "moreau-capi", "--profile", profile])
+                .current_dir(repo())
+                .status()
+                .expect("cargo runs");
+            assert!(status.success(), "building libmoreau_c");
             dir
         })
         .clone()
