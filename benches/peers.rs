@@ -24,7 +24,7 @@ use std::time::Instant;
 use moreau::backend::DeviceChoice;
 use moreau::io::checkpoint::{read_checkpoint, scene_identity, write_checkpoint};
 use moreau::io::plots::{write_chart, Chart, Series};
-use moreau::solvers::SolverOptions;
+use moreau::solvers::{Ordering, SolverOptions};
 use moreau::stepping::{Checkpoint, Simulation};
 use moreau::world::World;
 use scene::{kinetic_energy, penetration, rapier_pile};
@@ -138,16 +138,19 @@ fn main() {
     }
 
     // (setting, tolerance, fixed sweep count, Anderson depth instead of the scene's, focused
-    // sweeps): the scene's solver, at two tolerances the other side of Anderson acceleration,
-    // and focused sweeps without Anderson.
+    // sweeps, ordering instead of the scene's): the scene's solver, at two tolerances the other
+    // side of Anderson acceleration, focused sweeps without Anderson, and NLGS on a work list.
     let (other, named) = match first.settings.options.anderson {
         0 => (ANDERSON, format!("Anderson {ANDERSON}")),
         _ => (0, "plain NLGS".to_string()),
     };
-    let tolerances = [1e-2, 1e-3, 1e-4].map(|t| (format!("tol {t:.0e}"), Some(t), None, None, None));
-    let mixed = [1e-3, 1e-4].map(|t| (format!("tol {t:.0e}, {named}"), Some(t), None, Some(other), None));
-    let focused = [1e-3, 1e-4].map(|t| (format!("tol {t:.0e}, focus {FOCUS}"), Some(t), None, Some(0), Some(FOCUS)));
-    let sweeps = [4usize, 8, 16].map(|k| (format!("{k} sweeps"), None, Some(k), None, None));
+    let tolerances = [1e-2, 1e-3, 1e-4].map(|t| (format!("tol {t:.0e}"), Some(t), None, None, None, None));
+    let mixed = [1e-3, 1e-4].map(|t| (format!("tol {t:.0e}, {named}"), Some(t), None, Some(other), None, None));
+    let focused =
+        [1e-3, 1e-4].map(|t| (format!("tol {t:.0e}, focus {FOCUS}"), Some(t), None, Some(0), Some(FOCUS), None));
+    let listed = [1e-2, 1e-3, 1e-4]
+        .map(|t| (format!("tol {t:.0e}, work list"), Some(t), None, Some(0), None, Some(Ordering::Worklist)));
+    let sweeps = [4usize, 8, 16].map(|k| (format!("{k} sweeps"), None, Some(k), None, None, None));
     // The CPU at each thread count; a GPU once, its detection on the last count, without the
     // Anderson rows (the GPU's sweeps have none).
     let runs: Vec<(DeviceChoice, usize)> = devices
@@ -160,8 +163,9 @@ fn main() {
     for &(device, t) in &runs {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().expect("a thread pool");
         let on_gpu = device != DeviceChoice::Cpu;
-        for (setting, tol, fixed, anderson, focus) in tolerances.iter().chain(&mixed).chain(&focused).chain(&sweeps) {
-            // The GPU's sweeps have no Anderson rows of their own, nor focused sweeps.
+        let rows_of = tolerances.iter().chain(&mixed).chain(&focused).chain(&listed).chain(&sweeps);
+        for (setting, tol, fixed, anderson, focus, ordering) in rows_of {
+            // The GPU's sweeps have no Anderson rows of their own, nor focused sweeps or work lists.
             if (on_gpu && anderson.is_some()) || !chosen(setting) {
                 continue;
             }
@@ -169,6 +173,7 @@ fn main() {
             let base = SolverOptions {
                 anderson: anderson.unwrap_or(s.settings.options.anderson),
                 focus: focus.unwrap_or(s.settings.options.focus),
+                ordering: ordering.unwrap_or(s.settings.options.ordering),
                 ..s.settings.options.clone()
             };
             s.settings.options = match (tol, fixed) {

@@ -187,6 +187,35 @@ fn a_threaded_sweep_solves_rolling_rows_the_same_on_every_run() {
 }
 
 #[test]
+fn a_work_list_solves_rolling_rows() {
+    let (mut sim, _) = simulation(&pile(300, 0.1, "velocity"));
+    let (problem, _) = sim.next_problem().unwrap().unwrap();
+    let opts = SolverOptions {
+        tol: 1e-6,
+        max_iter: 20000,
+        criterion: solvers::StopCriterion::Velocity,
+        ordering: solvers::Ordering::Worklist,
+        ..Default::default()
+    };
+    let solved = solvers::solve(&problem, SolverKind::Nlgs, &opts, None);
+    assert!(solved.converged && solved.judged_error <= 1e-6, "{:.2e} {}", solved.judged_error, solved.stop_reason);
+    let nc = problem.n_contacts();
+    let u = problem.velocity(&solved.r);
+    let diag = problem.w.diag_blocks();
+    let velocity = moreau::problem::residual::velocity_error_rolling(
+        &diag,
+        &problem.q,
+        &problem.mu,
+        &problem.rolling,
+        &problem.gap_rate,
+        &solved.r,
+        &u,
+    );
+    assert!(velocity <= 1e-6, "{velocity:.2e}");
+    assert!(solved.r[2 * nc..].iter().any(|x| *x != 0.0), "no rolling impulse");
+}
+
+#[test]
 fn a_restart_carries_the_rolling_impulses_bit_for_bit() {
     let text = pile(200, 0.2, "natural");
     let (mut whole, _) = simulation(&text);

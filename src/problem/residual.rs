@@ -90,16 +90,8 @@ pub fn velocity_error_rolling(
 ) -> f64 {
     let nc = mu.len();
     let residual = |a: usize| {
-        let c = diag[a][0];
-        let f = natural_map([c * r[2 * a], c * r[2 * a + 1]], [u[2 * a], u[2 * a + 1]], mu[a]);
-        let roll = match rolling.get(a) {
-            Some(eta) => {
-                let (rr, bound) = (c * r[2 * nc + a], eta * c * r[2 * a].max(0.0));
-                rr - (rr - u[2 * nc + a]).clamp(-bound, bound)
-            }
-            None => 0.0,
-        };
-        (f[0] * f[0] + f[1] * f[1] + roll * roll).sqrt()
+        let roll = rolling.get(a).map(|&eta| (eta, r[2 * nc + a], u[2 * nc + a]));
+        contact_velocity_residual(diag[a][0], [r[2 * a], r[2 * a + 1]], [u[2 * a], u[2 * a + 1]], mu[a], roll)
     };
     // A maximum is the same whatever the order: threads change nothing.
     let worst = if parallel(nc) {
@@ -113,6 +105,21 @@ pub fn velocity_error_rolling(
     } else {
         worst
     }
+}
+
+/// One contact's term of [`velocity_error_rolling`] (before the scale): the natural map with De
+/// Saxcé's correction of `(c r, u)`, `c = W_αα,nn`, and the rolling row's when `rolling` gives
+/// `(η, r_r, u_r)`.
+pub fn contact_velocity_residual(c: f64, r: [f64; 2], u: [f64; 2], mu: f64, rolling: Option<(f64, f64, f64)>) -> f64 {
+    let f = natural_map([c * r[0], c * r[1]], u, mu);
+    let roll = match rolling {
+        Some((eta, rr, ur)) => {
+            let (rr, bound) = (c * rr, eta * c * r[0].max(0.0));
+            rr - (rr - ur).clamp(-bound, bound)
+        }
+        None => 0.0,
+    };
+    (f[0] * f[0] + f[1] * f[1] + roll * roll).sqrt()
 }
 
 /// The largest entry of `q` with each contact's gap term (`gap_rate`, empty when none) taken off

@@ -25,6 +25,7 @@ use rayon::prelude::*;
 use super::anderson::Anderson;
 use super::focus::Focus;
 use super::monitor::Monitor;
+use super::worklist;
 use super::{Ordering, SolveReport, SolverKind, SolverOptions};
 use crate::parallel::parallel;
 use crate::problem::colouring::Colouring;
@@ -42,6 +43,7 @@ const MIN_TASK: usize = 256;
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveReport {
     match &p.w {
         // Forward within each colour: the colour ranges are swept in order, on any thread count.
+        Delassus::MatrixFree(op) if opts.ordering == Ordering::Worklist => worklist::solve(p, op, opts, r),
         Delassus::MatrixFree(op) if opts.ordering == Ordering::Colours => {
             solve_coloured(p, op, &SolverOptions { ordering: Ordering::Forward, ..opts.clone() }, &r)
         }
@@ -140,8 +142,9 @@ fn solve_on(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, threaded:
         }
         _ => None,
     };
-    if opts.ordering == Ordering::Colours {
-        monitor.note("colour ordering needs a matrix-free problem: swept in forward order".into());
+    if matches!(opts.ordering, Ordering::Colours | Ordering::Worklist) {
+        let name = if opts.ordering == Ordering::Colours { "colour" } else { "worklist" };
+        monitor.note(format!("{name} ordering needs a matrix-free problem: swept in forward order"));
     }
     if opts.focus > 0 && focus.is_none() {
         monitor.note("focused sweeps skipped: they need a matrix-free problem swept in forward order".into());
@@ -158,8 +161,10 @@ fn solve_on(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, threaded:
             (Some(sweep), Delassus::MatrixFree(op), _) => {
                 sweep_on_threads(op, sweep, None, &mut r, state.body_velocity_mut())
             }
-            // Colours reach here only on an explicit W (noted below): swept forward.
-            (_, _, Ordering::Forward | Ordering::Colours) => (0..nc).for_each(|a| update(a, &mut r, &mut state)),
+            // Colours and work lists reach here only on an explicit W (noted above): swept forward.
+            (_, _, Ordering::Forward | Ordering::Colours | Ordering::Worklist) => {
+                (0..nc).for_each(|a| update(a, &mut r, &mut state))
+            }
             (_, _, Ordering::Backward) => (0..nc).rev().for_each(|a| update(a, &mut r, &mut state)),
             (_, _, Ordering::Symmetric) => {
                 (0..nc).for_each(|a| update(a, &mut r, &mut state));
@@ -245,7 +250,7 @@ fn local_solve(p: &ContactProblem, d: &Mat2, a: usize, ra: [f64; 2], wr: [f64; 2
 /// Contact `a`'s rolling update against its new normal impulse: the exact solve of the rolling
 /// row alone, `clamp(r_r − u_r / W_rr, ±η r_n)`, relaxed by ω before the clamp.
 #[inline]
-fn update_rolling<R, V>(p: &ContactProblem, op: &MatrixFree, omega: f64, a: usize, r: &mut R, v: &mut V)
+pub(super) fn update_rolling<R, V>(p: &ContactProblem, op: &MatrixFree, omega: f64, a: usize, r: &mut R, v: &mut V)
 where
     R: Velocities + Setter + ?Sized,
     V: Velocities + ?Sized,
@@ -266,7 +271,7 @@ where
 }
 
 /// Writes one element of the impulses, whether a plain slice or a [`SharedSlice`].
-trait Setter {
+pub(super) trait Setter {
     fn put(&mut self, k: usize, x: f64);
 }
 
