@@ -129,8 +129,9 @@ pub enum Ordering {
     /// separates what the GPU's order costs in sweeps from what its f32 costs.
     Colours,
     /// A work list: only contacts whose residual exceeds the tolerance are updated, and a contact
-    /// updated puts its neighbours back on the list (matrix-free problems; sequential). For
-    /// warm-started simulation steps, where the error sits on a few contacts.
+    /// updated puts its neighbours back on the list (matrix-free problems; on threads by the
+    /// threaded sweep's blocks, the same bits on any thread count). For warm-started simulation
+    /// steps, where the error sits on a few contacts.
     Worklist,
 }
 

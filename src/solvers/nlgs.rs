@@ -234,7 +234,7 @@ pub(super) fn update_contact(
 /// The new impulse of contact `a` (now `ra`, with `wr = (W r)_a`): the exact single-contact
 /// solve against all others, relaxed by ω.
 #[inline]
-fn local_solve(p: &ContactProblem, d: &Mat2, a: usize, ra: [f64; 2], wr: [f64; 2], omega: f64) -> [f64; 2] {
+pub(super) fn local_solve(p: &ContactProblem, d: &Mat2, a: usize, ra: [f64; 2], wr: [f64; 2], omega: f64) -> [f64; 2] {
     // Velocity of contact a with its own impulse removed.
     let q_local =
         [p.q[2 * a] + wr[0] - (d[0] * ra[0] + d[1] * ra[1]), p.q[2 * a + 1] + wr[1] - (d[2] * ra[0] + d[3] * ra[1])];
@@ -290,10 +290,10 @@ impl Setter for SharedSlice {
 }
 
 /// A contact's (n, t) solve, and its rolling update when the problem has rolling rows.
-type LocalSolves<'a, L, G> = (&'a L, Option<&'a G>);
+pub(super) type LocalSolves<'a, L, G> = (&'a L, Option<&'a G>);
 
 /// How a threaded sweep splits its contacts.
-enum Sweep<'a> {
+pub(super) enum Sweep<'a> {
     /// Contiguous ranges, one per colour (the problem renumbered by colour).
     Colours(&'a [(usize, usize)]),
     /// Per colour, ranges of contacts (blocks) that share no moving body with another block of
@@ -357,7 +357,7 @@ fn within(list: &[usize], first: usize, end: usize) -> &[usize] {
 
 /// Contact `a`'s update through shared slices (no other task touches its bodies meanwhile).
 #[inline]
-fn update_shared<L, G>(
+pub(super) fn update_shared<L, G>(
     op: &MatrixFree,
     (local, rolling): LocalSolves<L, G>,
     a: usize,
@@ -384,7 +384,7 @@ fn update_shared<L, G>(
 /// One threaded sweep, colour by colour: a colour's contacts (contact colours, a contiguous
 /// range each) or its blocks (each swept in contact order) on threads; only the contacts of
 /// `subset` (in increasing order) when one is given.
-fn threaded_sweep<L, G>(
+pub(super) fn threaded_sweep<L, G>(
     op: &MatrixFree,
     sweep: &Sweep,
     (local, rolling): LocalSolves<L, G>,

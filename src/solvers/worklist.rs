@@ -15,17 +15,24 @@
 //! and an update of the list, which also evaluates its neighbours' residuals, costs more than one
 //! of a sweep: while more than half the contacts are above the threshold, full sweeps run instead.
 //!
-//! The pass is sequential (the same bits on any thread count) and needs a matrix-free problem (the
-//! contacts of each body). Its iterations count sweeps' worth of contact updates, so `max_iter`
+//! Threads: the contacts are cut into the blocks of the threaded sweep (contiguous ranges, coloured
+//! so that two blocks of one colour share no moving body), each with its own list. Colour after
+//! colour, the blocks of a colour work through their lists at once, up to a block's length of
+//! updates each; a neighbour in another block is handed to that block after the colour's turn,
+//! in block order. The blocks depend on the problem, not on the thread count: the same bits on
+//! any. A problem too small or numbered in no spatial order is one block. The list needs a
+//! matrix-free problem (the contacts of each body). Its iterations count sweeps' worth of contact updates, so `max_iter`
 //! bounds the same work as for full sweeps. Under the natural-map test, which is not a per-contact
 //! test, an emptied list that does not meet it halves the threshold and starts again.
 
 use std::collections::VecDeque;
 
+use rayon::prelude::*;
+
 use super::monitor::Monitor;
-use super::nlgs::{update_contact, update_rolling};
+use super::nlgs::{block_colours, local_solve, threaded_sweep, update_rolling, update_shared, Sweep};
 use super::{SolveReport, SolverKind, SolverOptions};
-use crate::problem::delassus::SweepState;
+use crate::problem::matrix_free::{SharedSlice, Velocities};
 use crate::problem::residual::{contact_velocity_residual, free_velocity_bound};
 use crate::problem::{ContactProblem, MatrixFree};
 
@@ -43,6 +50,38 @@ pub const MAX_LIST_SHARE: f64 = 0.5;
 /// everywhere.
 const FULL_SWEEPS: usize = 10;
 
+/// One block's share of the list: its contacts `[first, end)` still to visit, and the contacts of
+/// other blocks its updates moved, handed over after its colour's turn.
+struct Block {
+    colour: usize,
+    first: usize,
+    end: usize,
+    queued: Vec<bool>,
+    list: VecDeque<usize>,
+    outbox: Vec<usize>,
+    updates: usize,
+    evaluations: usize,
+}
+
+impl Block {
+    fn new(colour: usize, (first, end): (usize, usize)) -> Self {
+        let (queued, list, outbox) = (vec![false; end - first], VecDeque::new(), Vec::new());
+        Self { colour, first, end, queued, list, outbox, updates: 0, evaluations: 0 }
+    }
+
+    fn push(&mut self, a: usize) {
+        let queued = &mut self.queued[a - self.first];
+        if !*queued {
+            *queued = true;
+            self.list.push_back(a);
+        }
+    }
+
+    fn clear(&mut self) {
+        self.list.drain(..).for_each(|a| self.queued[a - self.first] = false);
+    }
+}
+
 /// Solves `p` (whose operator is `op`) from `r` by NLGS on a work list.
 pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, mut r: Vec<f64>) -> SolveReport {
     let mut monitor = Monitor::new(p, opts, SolverKind::Nlgs, &r);
@@ -52,74 +91,99 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
     let scale = free_velocity_bound(&p.q, &p.gap_rate);
     let mut threshold = THRESHOLD_SHARE * opts.tol * if scale > f64::EPSILON { scale } else { 1.0 };
     let rolling = p.has_rolling();
-    let residual = |a: usize, r: &[f64], v: &[f64]| {
+    let residual = |a: usize, r: &SharedSlice, v: &SharedSlice| {
         let g = op.gather_one(a, v);
         let u = [p.q[2 * a] + g[0], p.q[2 * a + 1] + g[1]];
-        let roll = rolling.then(|| (p.rolling[a], r[2 * nc + a], p.q[2 * nc + a] + op.gather_rolling(a, v)));
-        contact_velocity_residual(diag[a][0], [r[2 * a], r[2 * a + 1]], u, p.mu[a], roll)
+        let roll = rolling.then(|| (p.rolling[a], r.get(2 * nc + a), p.q[2 * nc + a] + op.gather_rolling(a, v)));
+        contact_velocity_residual(diag[a][0], [r.get(2 * a), r.get(2 * a + 1)], u, p.mu[a], roll)
     };
-    let update = |a: usize, r: &mut [f64], state: &mut SweepState| {
-        update_contact(p, &diag, opts.omega, a, r, state);
-        if rolling {
-            update_rolling(p, op, opts.omega, a, r, state.body_velocity_mut());
-        }
-    };
+    let local = |a: usize, ra: [f64; 2], wr: [f64; 2]| local_solve(p, &diag[a], a, ra, wr, opts.omega);
+    let roll = |a: usize, r: &mut SharedSlice, v: &mut SharedSlice| update_rolling(p, op, opts.omega, a, r, v);
+    let solves = (&local, rolling.then_some(&roll));
+    let colours = block_colours(op, nc).unwrap_or_else(|| vec![vec![(0, nc)]]);
+    let mut blocks: Vec<Block> = colours
+        .iter()
+        .enumerate()
+        .flat_map(|(c, ranges)| ranges.iter().map(move |&range| Block::new(c, range)))
+        .collect();
+    blocks.sort_by_key(|b| b.first);
+    let firsts: Vec<usize> = blocks.iter().map(|b| b.first).collect();
+    let owner = |a: usize| firsts.partition_point(|&first| first <= a) - 1;
     let incidence = op.incidence();
-    let mut queued = vec![false; nc];
-    let mut list = VecDeque::new();
-    let (mut updates, mut evaluations, mut lowered, mut unobserved) = (0usize, 0usize, 0usize, 0usize);
-    let mut full_sweeps = 0usize;
+    // A block's turn: its list worked through, up to its length of updates.
+    let turn = |b: &mut Block, threshold: f64, (mut r, mut v): (SharedSlice, SharedSlice)| {
+        let mut updates = 0;
+        while updates < b.end - b.first {
+            let Some(a) = b.list.pop_front() else { break };
+            b.queued[a - b.first] = false;
+            b.evaluations += 1;
+            if residual(a, &r, &v) <= threshold {
+                continue;
+            }
+            update_shared(op, solves, a, &mut r, &mut v);
+            updates += 1;
+            for c in op.moving_bodies_of(a).flat_map(|body| incidence.contacts_of(body)) {
+                match (b.first..b.end).contains(&c) {
+                    true => b.push(c),
+                    false => b.outbox.push(c),
+                }
+            }
+        }
+        b.updates += updates;
+        updates
+    };
+    let (mut unobserved, mut lowered, mut full_sweeps) = (0usize, 0usize, 0usize);
     let mut u = vec![0.0; r.len()];
     let everywhere = (MAX_LIST_SHARE * nc as f64) as usize;
     let mut spread = false;
     'solve: loop {
         if !spread {
-            for (a, queued) in queued.iter_mut().enumerate() {
-                if !*queued && residual(a, &r, state.body_velocity_mut()) > threshold {
-                    *queued = true;
-                    list.push_back(a);
+            let shared = (SharedSlice::new(&mut r), SharedSlice::new(state.body_velocity_mut()));
+            blocks.par_iter_mut().for_each(|b| {
+                for a in b.first..b.end {
+                    if residual(a, &shared.0, &shared.1) > threshold {
+                        b.push(a);
+                    }
                 }
-            }
-            evaluations += nc;
+                b.evaluations += b.end - b.first;
+            });
         }
-        if spread || list.len() > everywhere {
+        if spread || blocks.iter().map(|b| b.list.len()).sum::<usize>() > everywhere {
             spread = false;
-            list.drain(..).for_each(|a| queued[a] = false);
+            blocks.iter_mut().for_each(Block::clear);
             full_sweeps += FULL_SWEEPS;
             for _ in 0..FULL_SWEEPS {
-                for a in 0..nc {
-                    update(a, &mut r, &mut state);
-                }
+                threaded_sweep(op, &Sweep::Blocks(&colours), solves, None, &mut r, state.body_velocity_mut());
                 if monitor.observe(&r, None) {
                     break 'solve;
                 }
             }
             continue;
         }
-        while let Some(a) = list.pop_front() {
-            queued[a] = false;
-            evaluations += 1;
-            if residual(a, &r, state.body_velocity_mut()) <= threshold {
-                continue;
-            }
-            update(a, &mut r, &mut state);
-            updates += 1;
-            for b in op.moving_bodies_of(a).flat_map(|body| incidence.contacts_of(body)) {
-                if !queued[b] {
-                    queued[b] = true;
-                    list.push_back(b);
+        while blocks.iter().any(|b| !b.list.is_empty()) {
+            for colour in 0..colours.len() {
+                let shared = (SharedSlice::new(&mut r), SharedSlice::new(state.body_velocity_mut()));
+                unobserved += blocks
+                    .par_iter_mut()
+                    .filter(|b| b.colour == colour)
+                    .map(|b| turn(b, threshold, shared))
+                    .sum::<usize>();
+                // The moved contacts of other blocks, handed over in block order.
+                for k in 0..blocks.len() {
+                    for a in std::mem::take(&mut blocks[k].outbox) {
+                        blocks[owner(a)].push(a);
+                    }
                 }
-            }
-            if list.len() > everywhere {
-                // The error has spread everywhere: full sweeps.
-                spread = true;
-                continue 'solve;
-            }
-            unobserved += 1;
-            if unobserved == nc {
-                unobserved = 0;
-                if monitor.observe(&r, None) {
-                    break 'solve;
+                if blocks.iter().map(|b| b.list.len()).sum::<usize>() > everywhere {
+                    // The error has spread everywhere: full sweeps.
+                    spread = true;
+                    continue 'solve;
+                }
+                while unobserved >= nc {
+                    unobserved -= nc;
+                    if monitor.observe(&r, None) {
+                        break 'solve;
+                    }
                 }
             }
         }
@@ -133,9 +197,12 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
         threshold *= 0.5;
         lowered += 1;
     }
+    let updates: usize = blocks.iter().map(|b| b.updates).sum();
+    let evaluations: usize = blocks.iter().map(|b| b.evaluations).sum();
     monitor.note(format!(
-        "work list: {updates} contact updates ({:.1} sweeps' worth) and {full_sweeps} full sweeps while the error \
-         was everywhere, {evaluations} residuals evaluated, threshold halved {lowered} times",
+        "work list over {} block(s): {updates} contact updates ({:.1} sweeps' worth) and {full_sweeps} full sweeps \
+         while the error was everywhere, {evaluations} residuals evaluated, threshold halved {lowered} times",
+        blocks.len(),
         updates as f64 / nc.max(1) as f64
     ));
     monitor.finish(r)
