@@ -20,10 +20,12 @@
 //! colour, the blocks of a colour work through their lists at once, up to a block's length of
 //! updates each; a neighbour in another block is handed to that block after the colour's turn,
 //! in block order. The blocks depend on the problem, not on the thread count: the same bits on
-//! any. A problem too small or numbered in no spatial order is one block. The list needs a
-//! matrix-free problem (the contacts of each body). Its iterations count sweeps' worth of contact updates, so `max_iter`
-//! bounds the same work as for full sweeps. Under the natural-map test, which is not a per-contact
-//! test, an emptied list that does not meet it halves the threshold and starts again.
+//! any. A problem too small or numbered in no spatial order is one block.
+//!
+//! The list needs a matrix-free problem (the contacts of each body). Its iterations count sweeps'
+//! worth of contact updates, so `max_iter` bounds the same work as for full sweeps. Under the
+//! natural-map test, which is not a per-contact test, an emptied list that does not meet it halves
+//! the threshold and starts again.
 
 use std::collections::VecDeque;
 
