@@ -46,11 +46,33 @@ pub fn natural_map_error_gapped(q: &[f64], mu: &[f64], rolling: &[f64], gap_rate
         chunked_sum(nc, |a| normal(a) * normal(a) + x[2 * a + 1] * x[2 * a + 1] + tail(a)).sqrt()
     };
     let scale = norm(q, gap_rate).max(norm(r, &[])).max(norm(u, gap_rate));
+    if !(sum.is_finite() && scale.is_finite()) {
+        return rescaled([q, gap_rate, r, u], |[q, gap, r, u]| natural_map_error_gapped(q, mu, rolling, gap, r, u));
+    }
     if scale > f64::EPSILON {
         sum.sqrt() / scale
     } else {
         sum.sqrt()
     }
+}
+
+/// `error` of `(q, gap_rate, r, u)` all divided by the same power of two, the one that brings
+/// their largest entry near 1: the relative error does not change (the natural map is
+/// homogeneous of degree 1 in `(r, u)`), but no sum of squares overflows. Impulses of 1e152
+/// (NLGS with momentum, blown up) made `‖r‖²` overflow to `inf` and the error `finite / inf =
+/// 0`: a blow-up judged converged. Non-finite entries give NaN.
+fn rescaled(x: [&[f64]; 4], error: impl Fn([&[f64]; 4]) -> f64) -> f64 {
+    let mut largest = 0.0f64;
+    for v in x.iter().flat_map(|x| x.iter()) {
+        if !v.is_finite() {
+            return f64::NAN;
+        }
+        largest = largest.max(v.abs());
+    }
+    // Exact: a power of two; after it every entry is at most 1 and no sum can overflow again.
+    let factor = 2f64.powi(-(largest.log2().ceil() as i32));
+    let scaled = x.map(|x| x.iter().map(|v| v * factor).collect::<Vec<f64>>());
+    error([&scaled[0], &scaled[1], &scaled[2], &scaled[3]])
 }
 
 /// Error of `r` for a problem (one operator product); also returns `u`.
@@ -140,6 +162,18 @@ pub fn gap_term(gap_rate: &[f64], k: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Two contacts pressed with impulses of 1.5e154 (‖r‖² overflows) while both separate at
+    /// 1e150: each residual is `u`, so the error is 1e150 / 1.5e154. It was 0 (`finite / inf`):
+    /// converged.
+    #[test]
+    fn impulses_whose_squares_overflow_keep_their_error() {
+        let (mu, q) = ([0.5, 0.5], [0.0; 4]);
+        let (r, u) = ([1.5e154, 0.0, 1.5e154, 0.0], [1e150, 0.0, 1e150, 0.0]);
+        let error = natural_map_error(&q, &mu, &r, &u);
+        assert!((error - 1e150 / 1.5e154).abs() < 1e-9 * error, "{error:e}");
+        assert!(natural_map_error(&q, &mu, &[f64::INFINITY, 0.0, 0.0, 0.0], &u).is_nan());
+    }
 
     /// Contact 0 is closed and violates Signorini; contact 1 is open, 5 m/s away (its gap over
     /// the step). The violation is judged against the closed contact's free velocity, not against
