@@ -49,6 +49,14 @@ typedef struct MoreauSolveOptions {
   size_t threads;
   // NLGS: Anderson acceleration over this many past sweeps (0: off; 5 is a good start).
   size_t anderson;
+  // What judges `tol`: `natural`, `velocity` (every contact, in velocity units: for
+  // simulation steps), `quad`, `maxm`, `qm16`. NULL: `natural` for a solve, unchanged for a
+  // simulation.
+  const char *criterion;
+  // NLGS's contact order: `forward`, `backward`, `symmetric`, `shuffled`, `colours`,
+  // `worklist` (the last two for a simulation's matrix-free steps). NULL: `forward` for a
+  // solve, unchanged for a simulation.
+  const char *ordering;
 } MoreauSolveOptions;
 
 // A solve's numbers (the arrays are copied out with `moreau_solution_copy_r` / `_u`).
@@ -61,6 +69,8 @@ typedef struct MoreauSolveSummary {
   size_t contacts;
   // Of `iterations`, those run on a GPU (the rest of a GPU solve: its f64 finish on the CPU).
   size_t gpu_iterations;
+  // The measure the criterion judged against `tol` (`error` itself under `natural`).
+  double judged_error;
 } MoreauSolveSummary;
 
 // What one step did.
@@ -164,6 +174,18 @@ enum MoreauStatus moreau_simulation_from_scene(const char *path, struct MoreauSi
 enum MoreauStatus moreau_simulation_set_device(struct MoreauSimulation *sim,
                                                const char *device,
                                                size_t threads);
+
+// The solver settings of the simulation's steps (a scene's, or those set since): `tol`,
+// `max_iter`, `anderson`; the names NULL (unchanged when handed back to
+// `moreau_simulation_set_solver`), `threads` 0.
+enum MoreauStatus moreau_simulation_solve_options(const struct MoreauSimulation *sim,
+                                                  struct MoreauSolveOptions *out);
+
+// Sets the solver of the following steps from `options`: `tol`, `max_iter`, `anderson`, and
+// the solver, criterion and ordering each NULL keeps (`device` and `threads` are
+// `moreau_simulation_set_device`'s). Settings that cannot run are refused and change nothing.
+enum MoreauStatus moreau_simulation_set_solver(struct MoreauSimulation *sim,
+                                               const struct MoreauSolveOptions *options);
 
 // Advances one step; `report` may be NULL. A step whose solve misses its tolerance succeeds
 // (the report says so); a step that blows up fails and the simulation keeps its last state.

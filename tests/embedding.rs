@@ -115,6 +115,30 @@ fn bad_requests_are_named_errors_never_panics() {
 }
 
 #[test]
+fn a_solver_set_on_a_loaded_scene_is_checked_as_a_new_simulations_and_refused_ones_change_nothing() {
+    use moreau::solvers::{Ordering, StopCriterion};
+    use moreau::SolverKind;
+    let mut sim = Simulation::from_scene(Path::new("scenes/column_collapse_rolling.toml")).unwrap();
+    let before = format!("{:?}", sim.settings);
+    let cpg = sim.set_solver(SolverKind::Cpg, sim.settings.options.clone()).unwrap_err();
+    assert!(cpg.to_string().contains("rolling resistance is solved by nlgs only, not cpg"), "{cpg}");
+    let zero = moreau::SolverOptions { max_iter: 0, ..sim.settings.options.clone() };
+    let e = sim.set_solver(SolverKind::Nlgs, zero).unwrap_err();
+    assert!(e.to_string().contains("max_iter 0"), "{e}");
+    assert_eq!(format!("{:?}", sim.settings), before);
+    let list = moreau::SolverOptions {
+        ordering: Ordering::Worklist,
+        criterion: StopCriterion::Velocity,
+        ..sim.settings.options.clone()
+    };
+    sim.set_solver(SolverKind::Nlgs, list).unwrap();
+    assert_eq!(
+        (sim.settings.options.ordering, sim.settings.options.criterion),
+        (Ordering::Worklist, StopCriterion::Velocity)
+    );
+}
+
+#[test]
 fn removing_a_body_renumbers_the_rest_and_keeps_their_warm_start() {
     // A column of three disks at rest on the floor; the middle one is taken out.
     let mut sim = disk_on_floor(0.3, true, true);

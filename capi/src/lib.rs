@@ -15,7 +15,8 @@ use moreau::backend::{solve_by_name, DeviceChoice};
 use moreau::detection::Antagonist;
 use moreau::io::siconos::read_fc2d;
 use moreau::problem::{BlockSparse, ContactProblem, Delassus};
-use moreau::{Simulation, SolveReport, SolverOptions};
+use moreau::solvers::{Ordering, StopCriterion};
+use moreau::{Simulation, SolveReport, SolverKind, SolverOptions};
 
 /// What a call did.
 #[repr(C)]
@@ -64,6 +65,14 @@ pub struct MoreauSolveOptions {
     pub threads: usize,
     /// NLGS: Anderson acceleration over this many past sweeps (0: off; 5 is a good start).
     pub anderson: usize,
+    /// What judges `tol`: `natural`, `velocity` (every contact, in velocity units: for
+    /// simulation steps), `quad`, `maxm`, `qm16`. NULL: `natural` for a solve, unchanged for a
+    /// simulation.
+    pub criterion: *const c_char,
+    /// NLGS's contact order: `forward`, `backward`, `symmetric`, `shuffled`, `colours`,
+    /// `worklist` (the last two for a simulation's matrix-free steps). NULL: `forward` for a
+    /// solve, unchanged for a simulation.
+    pub ordering: *const c_char,
 }
 
 /// A solve's numbers (the arrays are copied out with `moreau_solution_copy_r` / `_u`).
@@ -78,6 +87,8 @@ pub struct MoreauSolveSummary {
     pub contacts: usize,
     /// Of `iterations`, those run on a GPU (the rest of a GPU solve: its f64 finish on the CPU).
     pub gpu_iterations: usize,
+    /// The measure the criterion judged against `tol` (`error` itself under `natural`).
+    pub judged_error: f64,
 }
 
 /// What one step did.
@@ -302,7 +313,23 @@ pub extern "C" fn moreau_solve_options_default() -> MoreauSolveOptions {
         max_iter: d.max_iter,
         threads: 0,
         anderson: d.anderson,
+        criterion: std::ptr::null(),
+        ordering: std::ptr::null(),
     }
+}
+
+/// The criterion and the ordering `o` names, each NULL one taken from `now`.
+fn named_options(o: &MoreauSolveOptions, now: &SolverOptions) -> Result<(StopCriterion, Ordering), Failure> {
+    let invalid = |e: String| (MoreauStatus::InvalidArgument, e);
+    let criterion = match o.criterion.is_null() {
+        true => now.criterion,
+        false => StopCriterion::from_name(text(o.criterion, "options.criterion")?).map_err(invalid)?,
+    };
+    let ordering = match o.ordering.is_null() {
+        true => now.ordering,
+        false => Ordering::from_name(text(o.ordering, "options.ordering")?).map_err(invalid)?,
+    };
+    Ok((criterion, ordering))
 }
 
 /// Solves `problem` from `r0` (2n values, or NULL for zero). A solve that misses its tolerance
@@ -320,7 +347,10 @@ pub extern "C" fn moreau_solve(
         let r0 = if r0.is_null() { None } else { Some(slice(r0, 2 * problem.n_contacts(), "r0")?) };
         let solver = text(o.solver, "options.solver")?;
         let device = text(o.device, "options.device")?;
-        let opts = SolverOptions { tol: o.tol, max_iter: o.max_iter, anderson: o.anderson, ..SolverOptions::default() };
+        let defaults = SolverOptions::default();
+        let (criterion, ordering) = named_options(o, &defaults)?;
+        let opts =
+            SolverOptions { tol: o.tol, max_iter: o.max_iter, anderson: o.anderson, criterion, ordering, ..defaults };
         let (report, device) =
             solve_by_name(problem, solver, device, o.threads, &opts, r0).or_else(|e| fail(MoreauStatus::Solve, e))?;
         let stop_reason = CString::new(report.stop_reason.replace('\0', " ")).unwrap_or_default();
@@ -344,6 +374,7 @@ pub extern "C" fn moreau_solution_summary(
             seconds: r.seconds,
             contacts: r.r.len() / 2,
             gpu_iterations: r.gpu_iterations(),
+            judged_error: r.judged_error,
         };
         copy_out(&[summary], out, 1, "out")
     })
@@ -401,6 +432,60 @@ pub extern "C" fn moreau_simulation_set_device(
             DeviceChoice::from_name(text(device, "device")?).or_else(|e| fail(MoreauStatus::InvalidArgument, e))?;
         sim.choose_device(choice).or_else(|e| fail(MoreauStatus::Solve, e.to_string()))?;
         sim.set_threads(threads).or_else(|e| fail(MoreauStatus::InvalidArgument, e.to_string()))
+    })
+}
+
+/// The solver settings of the simulation's steps (a scene's, or those set since): `tol`,
+/// `max_iter`, `anderson`; the names NULL (unchanged when handed back to
+/// `moreau_simulation_set_solver`), `threads` 0.
+#[no_mangle]
+pub extern "C" fn moreau_simulation_solve_options(
+    sim: *const MoreauSimulation,
+    out: *mut MoreauSolveOptions,
+) -> MoreauStatus {
+    guard(|| {
+        let o = &object(sim, "sim")?.0.settings.options;
+        let options = MoreauSolveOptions {
+            solver: std::ptr::null(),
+            device: std::ptr::null(),
+            tol: o.tol,
+            max_iter: o.max_iter,
+            threads: 0,
+            anderson: o.anderson,
+            criterion: std::ptr::null(),
+            ordering: std::ptr::null(),
+        };
+        copy_out(&[options], out, 1, "out")
+    })
+}
+
+/// Sets the solver of the following steps from `options`: `tol`, `max_iter`, `anderson`, and
+/// the solver, criterion and ordering each NULL keeps (`device` and `threads` are
+/// `moreau_simulation_set_device`'s). Settings that cannot run are refused and change nothing.
+#[no_mangle]
+pub extern "C" fn moreau_simulation_set_solver(
+    sim: *mut MoreauSimulation,
+    options: *const MoreauSolveOptions,
+) -> MoreauStatus {
+    guard(|| {
+        let o = object(options, "options")?;
+        let sim = &mut object_mut(sim, "sim")?.0;
+        let now = &sim.settings;
+        let solver = match o.solver.is_null() {
+            true => now.solver,
+            false => SolverKind::from_name(text(o.solver, "options.solver")?)
+                .or_else(|e| fail(MoreauStatus::InvalidArgument, e))?,
+        };
+        let (criterion, ordering) = named_options(o, &now.options)?;
+        let options = SolverOptions {
+            tol: o.tol,
+            max_iter: o.max_iter,
+            anderson: o.anderson,
+            criterion,
+            ordering,
+            ..now.options.clone()
+        };
+        sim.set_solver(solver, options).or_else(|e| fail(MoreauStatus::InvalidArgument, e.to_string()))
     })
 }
 

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use moreau::io::siconos::read_fc2d;
+use moreau::solvers::{Ordering, StopCriterion};
 use moreau::{Simulation, SolverKind, SolverOptions};
 
 fn repo() -> PathBuf {
@@ -165,6 +166,31 @@ fn a_c_program_steps_a_pile_as_the_library_does() {
     assert_eq!(field(&out, "contacts") as usize, sim.contacts().len(), "{out}");
     assert!((field(&out, "top") - top).abs() < 1e-6, "{out}: Rust's top {top}");
     assert!((field(&out, "sum_rn") - sum).abs() <= 1e-8 * sum.abs(), "{out}: Rust's sum {sum:.9e}");
+}
+
+#[test]
+fn a_c_program_sets_a_scenes_ordering_and_criterion_as_the_library_does() {
+    let program = compile("step_scene");
+    let scene = repo().join("scenes/pile.toml");
+    let (_, out, err) = run(&program, &[scene.to_str().unwrap(), "30", "1", "worklist", "velocity"]);
+    assert!(out.contains("steps 30"), "{out}{err}");
+    let steps = |ordering: Ordering, criterion: StopCriterion| {
+        let mut sim = Simulation::from_scene(&scene).unwrap();
+        sim.set_threads(1).unwrap();
+        let options = SolverOptions { ordering, criterion, ..sim.settings.options.clone() };
+        sim.set_solver(sim.settings.solver, options).unwrap();
+        let last = (0..30).map(|_| sim.step().unwrap()).last().unwrap();
+        (last.iterations, sim.contacts().iter().map(|c| c.impulse[0]).sum::<f64>())
+    };
+    let (iterations, sum) = steps(Ordering::Worklist, StopCriterion::Velocity);
+    assert_eq!(field(&out, "iterations") as usize, iterations, "{out}");
+    assert!((field(&out, "sum_rn") - sum).abs() <= 1e-8 * sum.abs(), "{out}: Rust's sum {sum:.9e}");
+    // The scene's own settings step another way: the names were not ignored.
+    let scene_settings = Simulation::from_scene(&scene).unwrap().settings.options;
+    assert_ne!(steps(scene_settings.ordering, scene_settings.criterion), (iterations, sum));
+    let (code, _, err) = run(&program, &[scene.to_str().unwrap(), "1", "1", "random"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("unknown ordering \"random\" (one of: forward,"), "{err}");
 }
 
 #[test]

@@ -42,6 +42,11 @@ __all__ = [
 ]
 
 SOLVERS = ("nlgs", "cpg", "pcpg", "latin", "jacobi", "apgd", "newton", "nlgs-newton", "interior-point")
+#: What judges convergence: the relative natural-map error, LMGC90's tests, or every contact's
+#: residual in velocity units against the largest free velocity (for simulation steps).
+CRITERIA = ("natural", "quad", "maxm", "qm16", "velocity")
+#: NLGS's contact orders; ``colours`` and ``worklist`` need a matrix-free problem (a step's).
+ORDERINGS = ("forward", "backward", "symmetric", "shuffled", "colours", "worklist")
 
 Path = Union[str, "PathLike[str]"]
 
@@ -153,12 +158,14 @@ def read_fc2d(path: Path) -> Problem:
 
 @dataclass
 class SolveResult:
-    """What a solve returns; ``error`` is the f64 natural-map error of ``r``."""
+    """What a solve returns; ``error`` is the f64 natural-map error of ``r``, ``judged_error``
+    the measure its criterion judged against ``tol`` (``error`` itself under ``natural``)."""
 
     r: np.ndarray
     u: np.ndarray
     converged: bool
     error: float
+    judged_error: float
     iterations: int
     seconds: float
     w_products: int
@@ -189,14 +196,17 @@ def solve(
     history_every: int = 0,
     anderson: int = 0,
     focus: int = 0,
+    criterion: str = "natural",
+    ordering: str = "forward",
 ) -> SolveResult:
-    """Solves ``problem`` with ``solver`` (one of :data:`SOLVERS`) to the relative natural-map
-    error ``tol``, on ``device`` (``cpu``, ``gpu`` or ``auto``) with ``threads`` CPU threads
-    (0: all cores), from ``r0`` (zero if None); NLGS mixes its last ``anderson`` sweeps
-    (Anderson acceleration, 0: off) and, on a matrix-free problem (a simulation step's), follows
-    each full sweep with ``focus`` sweeps over the contacts around its largest changes (0: off;
-    iterations then count sweeps' worth of contact updates). Not converging is not an error: the
-    result says so."""
+    """Solves ``problem`` with ``solver`` (one of :data:`SOLVERS`) to ``tol`` on ``criterion``
+    (one of :data:`CRITERIA`; the relative natural-map error by default), on ``device``
+    (``cpu``, ``gpu`` or ``auto``) with ``threads`` CPU threads (0: all cores), from ``r0``
+    (zero if None). NLGS sweeps in ``ordering`` (one of :data:`ORDERINGS`), mixes its last
+    ``anderson`` sweeps (Anderson acceleration, 0: off) and, on a matrix-free problem (a
+    simulation step's), follows each full sweep with ``focus`` sweeps over the contacts around
+    its largest changes (0: off; iterations then count sweeps' worth of contact updates). Not
+    converging is not an error: the result says so."""
     if not isinstance(problem, Problem):
         raise MoreauError(f"problem: expected a moreau.Problem, got {type(problem).__name__}")
     if isinstance(max_iter, bool) or int(max_iter) != max_iter or max_iter < 0:
@@ -205,7 +215,7 @@ def solve(
     focus = _count(focus, "focus")
     r0_bytes = None if r0 is None else _f64(r0, "r0")
     d = _moreau.solve(problem._inner, solver, float(tol), int(max_iter), device, int(threads), r0_bytes,
-                      int(history_every), anderson, focus)
+                      int(history_every), anderson, focus, criterion, ordering)
     d["r"] = _from(d["r"], "<f8")
     d["u"] = _from(d["u"], "<f8")
     return SolveResult(**d)
@@ -224,12 +234,30 @@ class Simulation:
 
     def __init__(self, world: World, h: float, theta: float = 0.5, alert: Optional[float] = None,
                  solver: str = "nlgs", tol: float = 1e-4, max_iter: int = 10_000, anderson: int = 0,
-                 focus: int = 0) -> None:
+                 focus: int = 0, criterion: str = "natural", ordering: str = "forward") -> None:
         if isinstance(world, _moreau.Simulation):
             self._inner = world
             return
         self._inner = _moreau.Simulation(world, h, theta, alert, solver, tol, max_iter,
-                                         _count(anderson, "anderson"), _count(focus, "focus"))
+                                         _count(anderson, "anderson"), _count(focus, "focus"), criterion, ordering)
+
+    def set_solver(self, solver: Optional[str] = None, tol: Optional[float] = None,
+                   max_iter: Optional[int] = None, criterion: Optional[str] = None,
+                   ordering: Optional[str] = None, anderson: Optional[int] = None,
+                   focus: Optional[int] = None) -> None:
+        """Sets the solver of the following steps, as ``moreau run``'s options override a
+        scene's: each argument given replaces the current setting, the others stay. Settings
+        that cannot run (``max_iter`` 0, a solver the device or the rolling rows refuse) raise
+        MoreauError and change nothing."""
+        def count(x: Optional[int], name: str) -> Optional[int]:
+            return None if x is None else _count(x, name)
+        self._inner.set_solver(solver, None if tol is None else float(tol), count(max_iter, "max_iter"),
+                               criterion, ordering, count(anderson, "anderson"), count(focus, "focus"))
+
+    def solver_settings(self) -> Dict[str, Any]:
+        """The solver of the steps and its options: ``solver``, ``tol``, ``max_iter``,
+        ``criterion``, ``ordering``, ``anderson``, ``focus``, …"""
+        return self._inner.solver_settings()
 
     @classmethod
     def from_scene(cls, path: Path) -> "Simulation":

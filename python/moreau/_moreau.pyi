@@ -37,6 +37,8 @@ def solve(
     history_every: int = 0,
     anderson: int = 0,
     focus: int = 0,
+    criterion: str = "natural",
+    ordering: str = "forward",
 ) -> Dict[str, Any]: ...
 
 class World:
@@ -90,7 +92,20 @@ class Simulation:
         max_iter: int = 10000,
         anderson: int = 0,
         focus: int = 0,
+        criterion: str = "natural",
+        ordering: str = "forward",
     ) -> None: ...
+    def set_solver(
+        self,
+        solver: Optional[str] = None,
+        tol: Optional[float] = None,
+        max_iter: Optional[int] = None,
+        criterion: Optional[str] = None,
+        ordering: Optional[str] = None,
+        anderson: Optional[int] = None,
+        focus: Optional[int] = None,
+    ) -> None: ...
+    def solver_settings(self) -> Dict[str, Any]: ...
     @staticmethod
     def from_scene(path: _Path) -> Simulation: ...
     def set_device(self, device: str = "cpu", threads: int = 0) -> str: ...

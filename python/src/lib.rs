@@ -14,6 +14,7 @@ use moreau::backend::{solve_by_name, DeviceChoice};
 use moreau::detection::Antagonist;
 use moreau::io::siconos::{read_fc2d, write_fc2d, Storage};
 use moreau::problem::{BlockSparse, ContactProblem, Delassus};
+use moreau::solvers::{Ordering, StopCriterion};
 use moreau::world::Interaction;
 use moreau::{BodySpec, DVec2, Effects, Materials, SolverOptions, StepSettings, Wall};
 
@@ -116,7 +117,7 @@ fn read_problem(path: PathBuf) -> PyResult<Problem> {
 
 /// Solves `problem`; returns a dict of the report (arrays as bytes).
 #[pyfunction]
-#[pyo3(signature = (problem, solver, tol, max_iter, device, threads, r0 = None, history_every = 0, anderson = 0, focus = 0))]
+#[pyo3(signature = (problem, solver, tol, max_iter, device, threads, r0 = None, history_every = 0, anderson = 0, focus = 0, criterion = "natural", ordering = "forward"))]
 #[allow(clippy::too_many_arguments)]
 fn solve<'py>(
     py: Python<'py>,
@@ -130,9 +131,22 @@ fn solve<'py>(
     history_every: usize,
     anderson: usize,
     focus: usize,
+    criterion: &str,
+    ordering: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
     let r0 = r0.map(|b| floats(b, "r0")).transpose()?;
-    let opts = SolverOptions { tol, max_iter, history_every, anderson, focus, ..SolverOptions::default() };
+    let (criterion, ordering) =
+        (StopCriterion::from_name(criterion).map_err(error)?, Ordering::from_name(ordering).map_err(error)?);
+    let opts = SolverOptions {
+        tol,
+        max_iter,
+        history_every,
+        anderson,
+        focus,
+        criterion,
+        ordering,
+        ..SolverOptions::default()
+    };
     let problem = &problem.0;
     let (report, device) =
         py.detach(|| solve_by_name(problem, solver, device, threads, &opts, r0.as_deref())).map_err(error)?;
@@ -144,6 +158,7 @@ fn solve<'py>(
     d.set_item("u", to_bytes(py, &report.u))?;
     d.set_item("converged", report.converged)?;
     d.set_item("error", report.error)?;
+    d.set_item("judged_error", report.judged_error)?;
     d.set_item("iterations", report.iterations)?;
     d.set_item("seconds", report.seconds)?;
     d.set_item("w_products", report.w_products)?;
@@ -341,7 +356,7 @@ impl Simulation {
     /// A simulation of `world` with time step `h`; the alert distance defaults to 5 % of the
     /// smallest grain radius and the solver to NLGS at `tol`.
     #[new]
-    #[pyo3(signature = (world, h, theta = 0.5, alert = None, solver = "nlgs", tol = 1e-4, max_iter = 10_000, anderson = 0, focus = 0))]
+    #[pyo3(signature = (world, h, theta = 0.5, alert = None, solver = "nlgs", tol = 1e-4, max_iter = 10_000, anderson = 0, focus = 0, criterion = "natural", ordering = "forward"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         world: &World,
@@ -353,13 +368,53 @@ impl Simulation {
         max_iter: usize,
         anderson: usize,
         focus: usize,
+        criterion: &str,
+        ordering: &str,
     ) -> PyResult<Self> {
         let mut settings = StepSettings::for_world(&world.0, h);
         settings.theta = theta;
         settings.alert = alert.unwrap_or(settings.alert);
         settings.solver = moreau::SolverKind::from_name(solver).map_err(error)?;
-        settings.options = SolverOptions { tol, max_iter, anderson, focus, ..settings.options };
+        let (criterion, ordering) =
+            (StopCriterion::from_name(criterion).map_err(error)?, Ordering::from_name(ordering).map_err(error)?);
+        settings.options = SolverOptions { tol, max_iter, anderson, focus, criterion, ordering, ..settings.options };
         moreau::Simulation::new(world.0.clone(), settings).map(Self).map_err(error)
+    }
+
+    /// The solver of the following steps: each argument given replaces the current setting (a
+    /// scene's, or the constructor's), the others stay; refused, with the settings unchanged,
+    /// when the result cannot run.
+    #[pyo3(signature = (solver = None, tol = None, max_iter = None, criterion = None, ordering = None, anderson = None, focus = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn set_solver(
+        &mut self,
+        solver: Option<&str>,
+        tol: Option<f64>,
+        max_iter: Option<usize>,
+        criterion: Option<&str>,
+        ordering: Option<&str>,
+        anderson: Option<usize>,
+        focus: Option<usize>,
+    ) -> PyResult<()> {
+        let now = &self.0.settings;
+        let solver = solver.map(moreau::SolverKind::from_name).transpose().map_err(error)?.unwrap_or(now.solver);
+        let mut options = now.options.clone();
+        options.tol = tol.unwrap_or(options.tol);
+        options.max_iter = max_iter.unwrap_or(options.max_iter);
+        options.criterion =
+            criterion.map(StopCriterion::from_name).transpose().map_err(error)?.unwrap_or(options.criterion);
+        options.ordering = ordering.map(Ordering::from_name).transpose().map_err(error)?.unwrap_or(options.ordering);
+        options.anderson = anderson.unwrap_or(options.anderson);
+        options.focus = focus.unwrap_or(options.focus);
+        self.0.set_solver(solver, options).map_err(error)
+    }
+
+    /// The solver of the steps and its options, as a dict (`solver`, `tol`, `max_iter`,
+    /// `criterion`, `ordering`, `anderson`, `focus`, …).
+    fn solver_settings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = json_dict(py, &self.0.settings.options)?;
+        d.set_item("solver", self.0.settings.solver.name())?;
+        Ok(d)
     }
 
     /// The simulation a scene file describes.

@@ -146,6 +146,45 @@ def test_a_scene_stepped_from_python_matches_the_command_line_step_by_step(tmp_p
     np.testing.assert_array_equal(sim.spins, np.array(end["spin"]))
 
 
+def test_a_scene_given_another_solver_from_python_steps_as_the_command_lines_overrides_do(tmp_path):
+    # The work list and the velocity test, the settings of a settled pile's steps, set on a
+    # loaded scene as `moreau run --ordering worklist --criterion velocity` sets them.
+    steps = 30
+    args = [cli(), "run", str(PILE), "--steps", str(steps), "--threads", "1", "--device", "cpu", "--quiet"]
+    overrides = ["--ordering", "worklist", "--criterion", "velocity", "--tol", "1e-5"]
+    subprocess.run(args + overrides + ["--out", str(tmp_path / "list")], check=True, capture_output=True)
+    subprocess.run(args + ["--out", str(tmp_path / "scene")], check=True, capture_output=True)
+    listed, scene = read_steps(tmp_path / "list/steps.csv"), read_steps(tmp_path / "scene/steps.csv")
+    assert [r["iterations"] for r in listed] != [r["iterations"] for r in scene]
+    sim = moreau.Simulation.from_scene(PILE)
+    sim.set_device("cpu", threads=1)
+    before = sim.solver_settings()
+    sim.set_solver(ordering="worklist", criterion="velocity", tol=1e-5)
+    after = sim.solver_settings()
+    assert (after["ordering"], after["criterion"], after["tol"]) == ("worklist", "velocity", 1e-5)
+    assert {k: after[k] for k in ("solver", "max_iter", "anderson")} == {k: before[k] for k in ("solver", "max_iter", "anderson")}
+    for row in listed:
+        report = sim.step()
+        assert report["iterations"] == int(row["iterations"]) and report["converged"] == (row["converged"] == "true")
+        assert report["kinetic_energy"] == pytest.approx(float(row["kinetic_energy"]), rel=1e-12, abs=0.0)
+    # Refused settings change nothing.
+    with pytest.raises(moreau.MoreauError, match="max_iter 0: must be at least 1"):
+        sim.set_solver(max_iter=0, ordering="forward")
+    assert sim.solver_settings() == after
+
+
+def test_a_solve_judged_by_the_velocity_test_from_python_matches_the_command_line(tmp_path):
+    out = tmp_path / "solve.json"
+    args = [cli(), "solve", str(SEED), "--solver", "nlgs", "--tol", "1e-6", "--criterion", "velocity", "--threads", "1"]
+    subprocess.run(args + ["--device", "cpu", "--out", str(out)], check=True, capture_output=True)
+    from_cli = json.loads(out.read_text())
+    result = moreau.solve(moreau.read_fc2d(SEED), tol=1e-6, threads=1, criterion="velocity")
+    natural = moreau.solve(moreau.read_fc2d(SEED), tol=1e-6, threads=1)
+    assert result.converged and result.iterations == from_cli["iterations"] != natural.iterations
+    assert result.judged_error == pytest.approx(from_cli["judged_error"], rel=1e-12) and result.judged_error <= 1e-6
+    assert natural.judged_error == natural.error
+
+
 def test_a_checkpoint_written_from_python_restarts_bit_for_bit_here_and_on_the_command_line(tmp_path):
     scene = tmp_path / "pile.toml"
     scene.write_text(PILE.read_text().replace("[output]\n", "[output]\ncheckpoint_every = 30\n"))
@@ -263,6 +302,12 @@ def test_a_force_and_a_velocity_set_from_python_act_on_the_next_step():
         (lambda: moreau.Simulation(moreau.World([("glass", 2500.0)]), 1e-3, anderson=51), "anderson 51"),
         (lambda: moreau.Simulation(moreau.World([("glass", 2500.0)]), 1e-3, focus=101), "focus 101: at most 100"),
         (lambda: moreau.solve(moreau.read_fc2d(SEED), focus=-1), "focus -1: must be a whole number >= 0"),
+        (lambda: moreau.solve(moreau.read_fc2d(SEED), criterion="l2"), 'unknown criterion "l2" (one of: natural,'),
+        (lambda: moreau.solve(moreau.read_fc2d(SEED), ordering="random"), 'unknown ordering "random" (one of: forward,'),
+        (lambda: moreau.Simulation(moreau.World([("glass", 2500.0)]), 1e-3, ordering="random"), 'unknown ordering "random"'),
+        (lambda: moreau.Simulation.from_scene(PILE).set_solver(criterion="l2"), 'unknown criterion "l2"'),
+        (lambda: moreau.Simulation.from_scene(PILE).set_solver(tol=0.0), "tol 0: must be finite and > 0"),
+        (lambda: moreau.Simulation.from_scene(PILE).set_solver(anderson=-2), "anderson -2: must be a whole number >= 0"),
         (lambda: moreau.Problem(np.eye(2), [0.0, float("nan")], [0.1]), "q[1] is not finite"),
         (lambda: moreau.Problem(np.eye(2), [0.0, 0.0], [-0.1]), "mu[0] = -0.1 is not a friction coefficient"),
         (lambda: moreau.Problem(np.eye(3), [0.0, 0.0], [0.1]), "W has shape (3, 3), expected (2, 2)"),

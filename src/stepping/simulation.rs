@@ -353,6 +353,22 @@ impl Simulation {
         Ok(())
     }
 
+    /// The solver of the following steps and its options (tolerance, budget, criterion,
+    /// ordering, acceleration), as a host sets them after loading a scene: `settings` checked
+    /// first, as [`Self::new`] and [`Self::set_backend`] check them (options out of range, a
+    /// solver the world's rolling rows or the current device cannot run are refused).
+    pub fn set_solver(&mut self, solver: SolverKind, options: SolverOptions) -> Result<(), StepError> {
+        let settings = StepSettings { solver, options, ..self.settings.clone() };
+        settings.validate().map_err(StepError::Settings)?;
+        let rolling = self.world.effects.rolling_resistance;
+        if let Some(why) = crate::solvers::rolling_refusal(rolling, solver, settings.options.criterion) {
+            return Err(StepError::Settings(why));
+        }
+        self.backend.check(solver, &settings.options).map_err(|e| StepError::Settings(e.to_string()))?;
+        self.settings = settings;
+        Ok(())
+    }
+
     /// Where the steps are solved.
     pub fn backend(&self) -> &Backend {
         &self.backend
