@@ -109,6 +109,11 @@ impl Problem {
     }
 }
 
+/// The stopping criterion and NLGS ordering named `criterion` and `ordering`.
+fn criterion_and_ordering(criterion: &str, ordering: &str) -> PyResult<(StopCriterion, Ordering)> {
+    Ok((StopCriterion::from_name(criterion).map_err(error)?, Ordering::from_name(ordering).map_err(error)?))
+}
+
 /// Reads a Siconos fc2d problem file.
 #[pyfunction(name = "read_fc2d")]
 fn read_problem(path: PathBuf) -> PyResult<Problem> {
@@ -135,8 +140,7 @@ fn solve<'py>(
     ordering: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
     let r0 = r0.map(|b| floats(b, "r0")).transpose()?;
-    let (criterion, ordering) =
-        (StopCriterion::from_name(criterion).map_err(error)?, Ordering::from_name(ordering).map_err(error)?);
+    let (criterion, ordering) = criterion_and_ordering(criterion, ordering)?;
     let opts = SolverOptions {
         tol,
         max_iter,
@@ -375,8 +379,7 @@ impl Simulation {
         settings.theta = theta;
         settings.alert = alert.unwrap_or(settings.alert);
         settings.solver = moreau::SolverKind::from_name(solver).map_err(error)?;
-        let (criterion, ordering) =
-            (StopCriterion::from_name(criterion).map_err(error)?, Ordering::from_name(ordering).map_err(error)?);
+        let (criterion, ordering) = criterion_and_ordering(criterion, ordering)?;
         settings.options = SolverOptions { tol, max_iter, anderson, focus, criterion, ordering, ..settings.options };
         moreau::Simulation::new(world.0.clone(), settings).map(Self).map_err(error)
     }
