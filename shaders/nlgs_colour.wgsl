@@ -2,6 +2,8 @@
 // one colour share no moving body, so they are solved in parallel with exact Gauss–Seidel
 // semantics. Each contact reads its velocity from the body velocities v = M⁻¹ Bᵀ r, solves its
 // single-contact problem and scatters its impulse change into v (no two writers per body).
+// With a threshold (the work list's sweeps), a contact whose residual in velocity units is within
+// it is left alone: converged contacts do not drift.
 // CPU mirror: src/gpu/cpu/nlgs_colour.rs
 
 #import grid
@@ -45,6 +47,9 @@ fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups)
     let w = diag[a];
     let ra = r[a];
     let u = relative_velocity(c, v[c.i], vj) + q[a];
+    if (range.threshold > 0.0 && sc_velocity_residual(w.x, ra, u, mu[a]) <= range.threshold) {
+        return;
+    }
     let q_local = u - vec2<f32>(w.x * ra.x + w.y * ra.y, w.z * ra.x + w.w * ra.y);
     let rn = solve_single_contact(w, q_local, mu[a]);
     let d = rn - ra;

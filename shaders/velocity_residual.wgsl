@@ -25,11 +25,7 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid
     for (var k = 0u; k < PER_THREAD; k = k + 1u) {
         let a = base + k * WG + lid.x;
         if (a < n) {
-            let m = mu[a];
-            let ua = u[a];
-            let ra = c[a] * r[a];
-            let f = ra - sc_project_cone(ra - vec2<f32>(ua.x + m * abs(ua.y), ua.y), m);
-            worst = max(worst, length(f));
+            worst = max(worst, sc_velocity_residual(c[a], r[a], u[a], mu[a]));
         }
     }
     let largest = tree_max(lid.x, worst);

@@ -90,14 +90,33 @@ fn every_kernel_matches_its_cpu_mirror() {
         let diag: Vec<[f32; 4]> = p.w.diag_blocks().iter().map(|d| d.map(|x| x as f32)).collect();
         let colouring = Colouring::matrix_free(&layout);
         assert!(colouring.n_colours() >= 2, "{name}: {} colours", colouring.n_colours());
-        let (mut r_cpu, mut v_cpu) = (r.clone(), cpu_v.clone());
-        for colour in 0..colouring.n_colours() {
-            let (r_gpu, v_gpu) =
-                stages::nlgs_colour(&ctx, &layout, &diag, &q, &mu, &colouring, colour, &r_cpu, &v_cpu).unwrap();
-            cpu::nlgs_colour::nlgs_colour(&layout, &diag, &q, &mu, colouring.colour(colour), &mut r_cpu, &mut v_cpu);
-            assert_close(r_gpu.as_flattened(), r_cpu.as_flattened(), &format!("{name}: nlgs_colour {colour} r"));
-            assert_close(v_gpu.as_flattened(), v_cpu.as_flattened(), &format!("{name}: nlgs_colour {colour} v"));
-            // Continue both from the mirror's state so differences cannot compound.
+        // Plain (threshold 0), then as the work list's sweeps with the median contact's residual
+        // in velocity units as threshold: about half the contacts are left alone.
+        let c: Vec<f32> = diag.iter().map(|d| d[0]).collect();
+        let residuals: Vec<f32> =
+            (0..nc).map(|a| cpu::single_contact::velocity_residual(c[a], r[a], cpu_u[a], mu[a])).collect();
+        let mut sorted = residuals.clone();
+        sorted.sort_by(f32::total_cmp);
+        for threshold in [0.0, sorted[nc / 2]] {
+            let (mut r_cpu, mut v_cpu) = (r.clone(), cpu_v.clone());
+            for colour in 0..colouring.n_colours() {
+                let (r_gpu, v_gpu) =
+                    stages::nlgs_colour(&ctx, &layout, &diag, &q, &mu, &colouring, colour, threshold, &r_cpu, &v_cpu)
+                        .unwrap();
+                let contacts = colouring.colour(colour);
+                cpu::nlgs_colour::nlgs_colour(&layout, &diag, &q, &mu, contacts, threshold, &mut r_cpu, &mut v_cpu);
+                let what = format!("{name}: nlgs_colour {colour}, threshold {threshold:e}");
+                assert_close(r_gpu.as_flattened(), r_cpu.as_flattened(), &format!("{what} r"));
+                assert_close(v_gpu.as_flattened(), v_cpu.as_flattened(), &format!("{what} v"));
+                // Continue both from the mirror's state so differences cannot compound.
+            }
+            // The first colour saw the starting velocities: its contacts within the threshold
+            // kept their impulses, the others moved.
+            let first = colouring.colour(0).iter().map(|&a| a as usize);
+            let kept = first.clone().filter(|&a| r_cpu[a] == r[a]).count();
+            let within = first.clone().filter(|&a| residuals[a] <= threshold).count();
+            assert_eq!(kept, within, "{name}, threshold {threshold:e}: {kept} kept, {within} within");
+            assert!(threshold == 0.0 || (within > 0 && within < first.count()), "{name}: {within} within");
         }
         let colouring = Colouring::block_sparse(&bsr);
         let mut r_cpu = r.clone();

@@ -21,6 +21,15 @@ fn sc_residual(w: vec4<f32>, q: vec2<f32>, m: f32, r: vec2<f32>) -> f32 {
     return dot(f, f);
 }
 
+// The velocity test's term of one contact: |F(c r, u)|, F the natural map with De Saxcé's
+// correction of the impulse turned into the velocity it would give the contact alone
+// (c = W_aa,nn). Mirrors: src/gpu/cpu/single_contact.rs, and in f64
+// problem::residual::contact_velocity_residual.
+fn sc_velocity_residual(c: f32, r: vec2<f32>, u: vec2<f32>, m: f32) -> f32 {
+    let cr = c * r;
+    return length(cr - sc_project_cone(cr - vec2<f32>(u.x + m * abs(u.y), u.y), m));
+}
+
 // w = (W_nn, W_nt, W_tn, W_tt); q = velocity of the contact without its own impulse.
 fn solve_single_contact(w: vec4<f32>, q: vec2<f32>, m: f32) -> vec2<f32> {
     if (q.x >= 0.0) {

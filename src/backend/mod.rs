@@ -177,8 +177,14 @@ pub fn gpu_refusal(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
     if kind == SolverKind::Nlgs && opts.omega != 1.0 {
         return Some(format!("the GPU's NLGS has no relaxation (omega = {})", opts.omega));
     }
-    if kind == SolverKind::Nlgs && !matches!(opts.ordering, Ordering::Forward | Ordering::Colours) {
+    if kind == SolverKind::Nlgs && !matches!(opts.ordering, Ordering::Forward | Ordering::Colours | Ordering::Worklist)
+    {
         return Some(format!("the GPU's NLGS sweeps in colour order, not {:?}", opts.ordering).to_lowercase());
+    }
+    // The GPU keeps the list as thresholded sweeps, whose emptying is the velocity test; the
+    // CPU's list lowers its threshold until the natural map is met, which the GPU does not.
+    if kind == SolverKind::Nlgs && opts.ordering == Ordering::Worklist && opts.criterion != StopCriterion::Velocity {
+        return Some("the GPU's work-list sweeps stop on the velocity test: set criterion = velocity".into());
     }
     if opts.keep_iterates {
         return Some("the GPU path keeps no iterates".into());

@@ -2,6 +2,12 @@
 //! two of a colour share a moving body (matrix-free) or a block of `W` (explicit); a sweep is one
 //! dispatch per colour, so the GPU sweep is exactly a sequential Gauss–Seidel sweep in colour
 //! order. Kernels: `nlgs_colour.wgsl`, `nlgs_colour_bsr.wgsl`; loop and stopping in `driver.rs`.
+//!
+//! The work list (`ordering = "worklist"`) is kept on the GPU as thresholded sweeps: a contact is
+//! updated only while its residual in velocity units exceeds the CPU list's threshold, so that
+//! contacts within the tolerance do not drift, and a sweep that updates nothing meets the
+//! velocity test. A sweep still costs its dispatches whatever it updates: the count that matters
+//! here is sweeps, not updates (the CPU list's FIFO would be one dispatch per update).
 
 use std::time::Instant;
 
@@ -16,15 +22,16 @@ use super::layout::to_f32_pairs;
 use super::operator::{GpuMatrix, GpuProblem};
 use super::pool::{BindGroup, GpuBuffer};
 use crate::problem::{ContactProblem, Delassus};
-use crate::solvers::{SolveReport, SolverKind, SolverOptions};
+use crate::solvers::{worklist, Ordering, SolveReport, SolverKind, SolverOptions};
 
-/// The `Range` uniform of the colour kernels (padded to 16 bytes).
+/// The `Range` uniform of the colour kernels (padded to 16 bytes); `threshold` 0: every contact.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct Range {
     start: u32,
     count: u32,
-    _pad: [u32; 2],
+    threshold: f32,
+    _pad: u32,
 }
 
 /// One coloured NLGS sweep ready to record: a dispatch per colour, with the buffers its bind
@@ -39,8 +46,10 @@ pub struct ColouredSweep {
 }
 
 impl ColouredSweep {
-    /// The sweep of `p` (uploaded as `gp`) over the impulses in `r_buf` (which hold `r`).
-    pub fn new(ctx: &GpuContext, p: &ContactProblem, gp: &GpuProblem, r_buf: &GpuBuffer) -> Self {
+    /// The sweep of `p` (uploaded as `gp`) over the impulses in `r_buf` (which hold `r`); a
+    /// matrix-free sweep with `threshold` > 0 updates only the contacts whose residual in
+    /// velocity units exceeds it.
+    pub fn new(ctx: &GpuContext, p: &ContactProblem, gp: &GpuProblem, r_buf: &GpuBuffer, threshold: f32) -> Self {
         let kernels = &gp.kernels;
         let diag: Vec<[f32; 4]> = p.w.diag_blocks().iter().map(|d| d.map(|x| x as f32)).collect();
         let diag_buf = storage(ctx, "diag", &diag);
@@ -49,7 +58,8 @@ impl ColouredSweep {
         let per_colour = |kernel: &Kernel, c: &Colouring, buffers: &[(&str, &GpuBuffer)]| -> Vec<(BindGroup, u32)> {
             (0..c.n_colours())
                 .map(|k| {
-                    let range = Range { start: c.start[k], count: c.start[k + 1] - c.start[k], _pad: [0; 2] };
+                    let count = c.start[k + 1] - c.start[k];
+                    let range = Range { start: c.start[k], count, threshold, _pad: 0 };
                     let range_buf = uniform(ctx, "colour", &[range]);
                     let mut all = buffers.to_vec();
                     all.push(("range", &range_buf));
@@ -156,9 +166,13 @@ pub fn solve(
     let r = initial_impulses(p, r0);
     let r32 = to_f32_pairs(&r);
     let r_buf = storage(ctx, "r", &r32);
-    let sweep = ColouredSweep::new(ctx, p, &gp, &r_buf);
-    // Deeper histories are cut to the kernels' (backend::gpu_omits says so).
-    let depth = opts.anderson.min(MAX_DEPTH);
+    // As on the CPU, the list needs the contacts of each body: a matrix-free problem.
+    let worklist = opts.ordering == Ordering::Worklist && matches!(p.w, Delassus::MatrixFree(_));
+    let threshold = if worklist { worklist::threshold(p, opts.tol) as f32 } else { 0.0 };
+    let sweep = ColouredSweep::new(ctx, p, &gp, &r_buf, threshold);
+    // Deeper histories are cut to the kernels' (backend::gpu_omits says so); the work list's
+    // sweeps are not mixed, as on the CPU: a mix would move the contacts it leaves alone.
+    let depth = if worklist { 0 } else { opts.anderson.min(MAX_DEPTH) };
     let mixer = (depth > 0).then(|| GpuAnderson::new(ctx, &gp, &r32, &r_buf, depth, sweep.velocities()));
     let mut report = iterate(ctx, p, &gp, opts, SolverKind::Nlgs, start, r, &r_buf, 1, |pass| {
         sweep.record(pass);
@@ -166,6 +180,13 @@ pub fn solve(
             mixer.record(pass);
         }
     })?;
+    if worklist {
+        report
+            .notes
+            .push(format!("work list on the GPU: sweeps update only contacts above {threshold:.3e} in velocity units"));
+    } else if opts.ordering == Ordering::Worklist {
+        report.notes.push("worklist ordering needs a matrix-free problem: plain colour sweeps".into());
+    }
     if let Some(mixer) = &mixer {
         let restarts = mixer.restarts(ctx).map_err(GpuError::Runtime)?;
         report.notes.push(format!("Anderson acceleration over {depth} sweeps (on the GPU), {restarts} restarts"));

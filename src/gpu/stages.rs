@@ -85,7 +85,8 @@ pub fn jacobi_update(
     read_back(ctx, &bufs[3], mu.len()).map_err(GpuError::Runtime)
 }
 
-/// One colour of the coloured NLGS sweep (matrix-free): returns the new `r` and `v`.
+/// One colour of the coloured NLGS sweep (matrix-free), updating only contacts whose residual in
+/// velocity units exceeds `threshold` when it is > 0: returns the new `r` and `v`.
 #[allow(clippy::too_many_arguments)]
 pub fn nlgs_colour(
     ctx: &GpuContext,
@@ -95,12 +96,13 @@ pub fn nlgs_colour(
     mu: &[f32],
     colouring: &super::colouring::Colouring,
     colour: usize,
+    threshold: f32,
     r: &[[f32; 2]],
     v: &[[f32; 4]],
 ) -> Result<ImpulsesAndVelocities, GpuError> {
     let k = ctx.kernels(op.rotation, op.friction);
     let count = colouring.start[colour + 1] - colouring.start[colour];
-    let range = super::kernels::uniform(ctx, "range", &[colouring.start[colour], count, 0, 0]);
+    let range = super::kernels::uniform(ctx, "range", &[colouring.start[colour], count, threshold.to_bits(), 0]);
     let bufs = [
         storage(ctx, "contacts", &op.contacts),
         storage(ctx, "inv_mass", &op.inv_mass),

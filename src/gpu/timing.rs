@@ -79,7 +79,7 @@ pub fn nlgs_sweep_times(ctx: &GpuContext, p: &ContactProblem, n: usize, depth: u
     let gp = GpuProblem::upload(ctx, p);
     let r0 = vec![[0.0f32; 2]; p.n_contacts()];
     let r = storage(ctx, "r", &r0);
-    let sweep = ColouredSweep::new(ctx, p, &gp, &r);
+    let sweep = ColouredSweep::new(ctx, p, &gp, &r, 0.0);
     let (colours, largest) = sweep.colours();
     run(ctx, 3, |pass| sweep.record(pass))?; // warm-up, as for the products
     let (sweep_time, largest_colour) =

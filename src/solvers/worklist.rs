@@ -43,6 +43,14 @@ use crate::problem::{ContactProblem, MatrixFree};
 /// rounding of the body velocities kept up to date.
 pub const THRESHOLD_SHARE: f64 = 0.9;
 
+/// The residual in velocity units above which a contact of `p` is updated, for `tol`:
+/// [`THRESHOLD_SHARE`] of the velocity test's bound (`tol` times the largest free velocity).
+/// The GPU's work-list sweeps take the same.
+pub fn threshold(p: &ContactProblem, tol: f64) -> f64 {
+    let scale = free_velocity_bound(&p.q, &p.gap_rate);
+    THRESHOLD_SHARE * tol * if scale > f64::EPSILON { scale } else { 1.0 }
+}
+
 /// When more than this share of the contacts is above the threshold the error is everywhere
 /// (a deposit loaded from rest): full sweeps, which cost less per update than the list, run in
 /// batches of ten until the list would be shorter.
@@ -90,8 +98,7 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
     let nc = p.n_contacts();
     let diag = p.w.diag_blocks();
     let mut state = p.w.sweep_state(&r);
-    let scale = free_velocity_bound(&p.q, &p.gap_rate);
-    let mut threshold = THRESHOLD_SHARE * opts.tol * if scale > f64::EPSILON { scale } else { 1.0 };
+    let mut threshold = threshold(p, opts.tol);
     let rolling = p.has_rolling();
     let residual = |a: usize, r: &SharedSlice, v: &SharedSlice| {
         let g = op.gather_one(a, v);

@@ -1,8 +1,10 @@
 //! Mirror of `shaders/nlgs_colour.wgsl`: one colour of a coloured NLGS sweep (matrix-free).
 //! Contacts of a colour are independent, so running them in order is the parallel result.
+//! With a `threshold` > 0 (the work list's sweeps) a contact whose residual in velocity units is
+//! within it is left alone.
 
 use super::contact_gather::gather_one;
-use super::single_contact::solve_single_contact;
+use super::single_contact::{solve_single_contact, velocity_residual};
 use crate::gpu::layout::{MatrixFreeLayout, NO_ANTAGONIST};
 
 /// The CPU mirror of `nlgs_colour`: the same bindings and order of operations in f32.
@@ -13,6 +15,7 @@ pub fn nlgs_colour(
     q: &[[f32; 2]],
     mu: &[f32],
     contacts_of_colour: &[u32],
+    threshold: f32,
     r: &mut [[f32; 2]],
     v: &mut [[f32; 4]],
 ) {
@@ -24,6 +27,9 @@ pub fn nlgs_colour(
         let w = diag[a];
         let ra = r[a];
         let u = [un + q[a][0], ut + q[a][1]];
+        if threshold > 0.0 && velocity_residual(w[0], ra, u, mu[a]) <= threshold {
+            continue;
+        }
         let q_local = [u[0] - (w[0] * ra[0] + w[1] * ra[1]), u[1] - (w[2] * ra[0] + w[3] * ra[1])];
         let rn = solve_single_contact(w, q_local, mu[a]);
         let d = [rn[0] - ra[0], rn[1] - ra[1]];

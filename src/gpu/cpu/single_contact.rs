@@ -23,6 +23,15 @@ fn wgsl_sign(x: f32) -> f32 {
     }
 }
 
+/// The velocity test's term of one contact in f32, as the kernels take it: `|F(c r, u)|`, F the
+/// natural map with De Saxcé's correction, `c = W_aa,nn`.
+pub fn velocity_residual(c: f32, r: [f32; 2], u: [f32; 2], m: f32) -> f32 {
+    let cr = [c * r[0], c * r[1]];
+    let p = project_cone([cr[0] - (u[0] + m * u[1].abs()), cr[1] - u[1]], m);
+    let f = [cr[0] - p[0], cr[1] - p[1]];
+    (f[0] * f[0] + f[1] * f[1]).sqrt()
+}
+
 fn residual(w: [f32; 4], q: [f32; 2], m: f32, r: [f32; 2]) -> f32 {
     let u = [w[0] * r[0] + w[1] * r[1] + q[0], w[2] * r[0] + w[3] * r[1] + q[1]];
     let ut = [u[0] + m * u[1].abs(), u[1]];
