@@ -24,7 +24,7 @@ use std::time::Instant;
 use moreau::backend::DeviceChoice;
 use moreau::io::checkpoint::{read_checkpoint, scene_identity, write_checkpoint};
 use moreau::io::plots::{write_chart, Chart, Series};
-use moreau::solvers::{Ordering, SolverOptions};
+use moreau::solvers::{Ordering, SolverOptions, StopCriterion};
 use moreau::stepping::{Checkpoint, Simulation};
 use moreau::world::World;
 use scene::{kinetic_energy, penetration, rapier_pile};
@@ -165,8 +165,11 @@ fn main() {
         let on_gpu = device != DeviceChoice::Cpu;
         let rows_of = tolerances.iter().chain(&mixed).chain(&focused).chain(&listed).chain(&sweeps);
         for (setting, tol, fixed, anderson, focus, ordering) in rows_of {
-            // The GPU's sweeps have no Anderson rows of their own, nor focused sweeps or work lists.
-            if (on_gpu && anderson.is_some()) || !chosen(setting) {
+            // The GPU's sweeps have no Anderson rows of their own, nor focused sweeps; its work
+            // list (thresholded sweeps) needs the velocity test.
+            let gpu_list =
+                *ordering == Some(Ordering::Worklist) && first.settings.options.criterion == StopCriterion::Velocity;
+            if (on_gpu && anderson.is_some() && !gpu_list) || !chosen(setting) {
                 continue;
             }
             let mut s = load();
