@@ -126,15 +126,18 @@ fn a_solver_set_on_a_loaded_scene_is_checked_as_a_new_simulations_and_refused_on
     let e = sim.set_solver(SolverKind::Nlgs, zero).unwrap_err();
     assert!(e.to_string().contains("max_iter 0"), "{e}");
     assert_eq!(format!("{:?}", sim.settings), before);
-    let list = moreau::SolverOptions {
-        ordering: Ordering::Worklist,
-        criterion: StopCriterion::Velocity,
+    // The scene's own work list and velocity test, replaced by forward sweeps and the natural map.
+    let scene = (sim.settings.options.ordering, sim.settings.options.criterion);
+    assert_eq!(scene, (Ordering::Worklist, StopCriterion::Velocity));
+    let sweeps = moreau::SolverOptions {
+        ordering: Ordering::Forward,
+        criterion: StopCriterion::Natural,
         ..sim.settings.options.clone()
     };
-    sim.set_solver(SolverKind::Nlgs, list).unwrap();
+    sim.set_solver(SolverKind::Nlgs, sweeps).unwrap();
     assert_eq!(
         (sim.settings.options.ordering, sim.settings.options.criterion),
-        (Ordering::Worklist, StopCriterion::Velocity)
+        (Ordering::Forward, StopCriterion::Natural)
     );
 }
 
