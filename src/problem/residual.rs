@@ -136,7 +136,21 @@ pub fn velocity_error_rolling(
 /// One contact's term of [`velocity_error_rolling`] (before the scale): the natural map with De
 /// Saxcé's correction of `(c r, u)`, `c = W_αα,nn`, and the rolling row's when `rolling` gives
 /// `(η, r_r, u_r)`.
+#[inline]
 pub fn contact_velocity_residual(c: f64, r: [f64; 2], u: [f64; 2], mu: f64, rolling: Option<(f64, f64, f64)>) -> f64 {
+    contact_velocity_residual_squared(c, r, u, mu, rolling).sqrt()
+}
+
+/// The square of [`contact_velocity_residual`], for a caller that compares it with a threshold
+/// many times (no square root's latency).
+#[inline]
+pub fn contact_velocity_residual_squared(
+    c: f64,
+    r: [f64; 2],
+    u: [f64; 2],
+    mu: f64,
+    rolling: Option<(f64, f64, f64)>,
+) -> f64 {
     let f = natural_map([c * r[0], c * r[1]], u, mu);
     let roll = match rolling {
         Some((eta, rr, ur)) => {
@@ -145,7 +159,7 @@ pub fn contact_velocity_residual(c: f64, r: [f64; 2], u: [f64; 2], mu: f64, roll
         }
         None => 0.0,
     };
-    (f[0] * f[0] + f[1] * f[1] + roll * roll).sqrt()
+    f[0] * f[0] + f[1] * f[1] + roll * roll
 }
 
 /// The largest entry of `q` with each contact's gap term (`gap_rate`, empty when none) taken off

@@ -34,8 +34,9 @@ use rayon::prelude::*;
 use super::monitor::Monitor;
 use super::nlgs::{block_colours, local_solve, threaded_sweep, update_rolling, update_shared, Sweep};
 use super::{SolveReport, SolverKind, SolverOptions};
-use crate::problem::matrix_free::{SharedSlice, Velocities};
-use crate::problem::residual::{contact_velocity_residual, free_velocity_bound};
+use crate::parallel::CHUNK;
+use crate::problem::matrix_free::{ContactRows, Levers, SharedSlice, Velocities};
+use crate::problem::residual::{contact_velocity_residual_squared, free_velocity_bound};
 use crate::problem::{ContactProblem, MatrixFree};
 
 /// A contact is updated while its residual exceeds this share of the tolerance (times the
@@ -59,6 +60,16 @@ pub const MAX_LIST_SHARE: f64 = 0.5;
 /// Full sweeps between two counts of the contacts above the threshold, while the error is
 /// everywhere.
 const FULL_SWEEPS: usize = 10;
+
+/// What a residual evaluation reads of a contact, in one place: an evaluation of a neighbour
+/// would otherwise miss the cache once per array (rows, lever arms, `q`, diagonal, μ).
+struct Record {
+    rows: ContactRows,
+    levers: Option<Levers>,
+    q: [f64; 2],
+    w_nn: f64,
+    mu: f64,
+}
 
 /// One block's share of the list: its contacts `[first, end)` still to visit, and the contacts of
 /// other blocks its updates moved, handed over after its colour's turn.
@@ -100,11 +111,22 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
     let mut state = p.w.sweep_state(&r);
     let mut threshold = threshold(p, opts.tol);
     let rolling = p.has_rolling();
-    let residual = |a: usize, r: &SharedSlice, v: &SharedSlice| {
-        let g = op.gather_one(a, v);
-        let u = [p.q[2 * a] + g[0], p.q[2 * a + 1] + g[1]];
+    let records: Vec<Record> = (0..nc)
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .map(|a| {
+            let (rows, levers) = op.rows_of(a);
+            Record { rows, levers, q: [p.q[2 * a], p.q[2 * a + 1]], w_nn: diag[a][0], mu: p.mu[a] }
+        })
+        .collect();
+    // Whether contact `a`'s residual exceeds `threshold` (compared squared).
+    let above = |a: usize, r: &SharedSlice, v: &SharedSlice, threshold: f64| {
+        let k = &records[a];
+        let g = op.gather_rows(&k.rows, k.levers.as_ref(), v);
+        let u = [k.q[0] + g[0], k.q[1] + g[1]];
         let roll = rolling.then(|| (p.rolling[a], r.get(2 * nc + a), p.q[2 * nc + a] + op.gather_rolling(a, v)));
-        contact_velocity_residual(diag[a][0], [r.get(2 * a), r.get(2 * a + 1)], u, p.mu[a], roll)
+        contact_velocity_residual_squared(k.w_nn, [r.get(2 * a), r.get(2 * a + 1)], u, k.mu, roll)
+            > threshold * threshold
     };
     let local = |a: usize, ra: [f64; 2], wr: [f64; 2]| local_solve(p, &diag[a], a, ra, wr, opts.omega);
     let roll = |a: usize, r: &mut SharedSlice, v: &mut SharedSlice| update_rolling(p, op, opts.omega, a, r, v);
@@ -118,7 +140,7 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
     blocks.sort_by_key(|b| b.first);
     let firsts: Vec<usize> = blocks.iter().map(|b| b.first).collect();
     let owner = |a: usize| firsts.partition_point(|&first| first <= a) - 1;
-    let incidence = op.incidence();
+    let neighbours = op.neighbours();
     // A block's turn: its list worked through, up to its length of updates.
     let turn = |b: &mut Block, threshold: f64, (mut r, mut v): (SharedSlice, SharedSlice)| {
         let mut updates = 0;
@@ -126,12 +148,12 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
             let Some(a) = b.list.pop_front() else { break };
             b.queued[a - b.first] = false;
             b.evaluations += 1;
-            if residual(a, &r, &v) <= threshold {
+            if !above(a, &r, &v, threshold) {
                 continue;
             }
             update_shared(op, solves, a, &mut r, &mut v);
             updates += 1;
-            for c in op.moving_bodies_of(a).flat_map(|body| incidence.contacts_of(body)) {
+            for c in neighbours.of(a) {
                 match (b.first..b.end).contains(&c) {
                     true => b.push(c),
                     false => b.outbox.push(c),
@@ -150,7 +172,7 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
             let shared = (SharedSlice::new(&mut r), SharedSlice::new(state.body_velocity_mut()));
             blocks.par_iter_mut().for_each(|b| {
                 for a in b.first..b.end {
-                    if residual(a, &shared.0, &shared.1) > threshold {
+                    if above(a, &shared.0, &shared.1, threshold) {
                         b.push(a);
                     }
                 }
