@@ -5,6 +5,7 @@
 
 use std::sync::OnceLock;
 
+use rayon::iter::Either;
 use rayon::prelude::*;
 
 use super::colouring::Colouring;
@@ -164,7 +165,7 @@ pub struct MatrixFree {
     /// Each body's contacts, built on first use (threaded products, colouring).
     incidence: OnceLock<Incidence>,
     /// Each contact's neighbours, built on first use (work lists); boxed, to keep the operator small.
-    neighbours: OnceLock<Box<Neighbours>>,
+    neighbours: OnceLock<Option<Box<Neighbours>>>,
     /// The contact graph's colouring, built on first use or handed in (repaired from the
     /// last step's by the stepping).
     colouring: OnceLock<Colouring>,
@@ -228,11 +229,20 @@ pub struct Neighbours {
 }
 
 impl Neighbours {
-    fn new(m: &MatrixFree) -> Self {
+    /// The table, unless it would hold more than [`Self::MAX_ROW`] entries per contact on
+    /// average: a body with `D` contacts puts `D` entries in each of their rows, `D²` in all (a
+    /// large moving body under thousands of grains).
+    fn new(m: &MatrixFree) -> Option<Self> {
         let incidence = m.incidence();
         let nc = m.rows.len();
-        assert!(nc < u32::MAX as usize / 32, "{nc} contacts: too many for a neighbour table");
-        let (mut start, mut list) = (Vec::with_capacity(nc + 1), Vec::with_capacity(8 * nc));
+        let entries: usize = (0..m.bodies.len())
+            .filter(|&k| m.bodies[k] != Body::fixed())
+            .map(|k| (incidence.start[k + 1] - incidence.start[k]).pow(2))
+            .sum();
+        if entries > Self::MAX_ROW * nc || entries >= u32::MAX as usize {
+            return None;
+        }
+        let (mut start, mut list) = (Vec::with_capacity(nc + 1), Vec::with_capacity(entries));
         start.push(0u32);
         for a in 0..nc {
             let row = list.len();
@@ -244,13 +254,36 @@ impl Neighbours {
             }
             start.push(list.len() as u32);
         }
-        Self { start, list }
+        Some(Self { start, list })
     }
 
+    /// Entries per contact, on average, above which no table is kept.
+    pub const MAX_ROW: usize = 32;
+}
+
+/// Each contact's neighbours, from the [`Neighbours`] table where the operator keeps one, else
+/// from its bodies' contact lists (the same contacts in the same order, repeated where both
+/// bodies touch one).
+#[derive(Clone, Copy)]
+pub struct ContactNeighbours<'a> {
+    op: &'a MatrixFree,
+    table: Option<&'a Neighbours>,
+}
+
+impl<'a> ContactNeighbours<'a> {
     /// Contact `a`'s neighbours, itself included (none when neither of its bodies moves).
     #[inline]
-    pub fn of(&self, a: usize) -> impl Iterator<Item = usize> + '_ {
-        self.list[self.start[a] as usize..self.start[a + 1] as usize].iter().map(|&c| c as usize)
+    pub fn of(&self, a: usize) -> impl Iterator<Item = usize> + 'a {
+        let op = self.op;
+        match self.table {
+            Some(t) => Either::Left(t.list[t.start[a] as usize..t.start[a + 1] as usize].iter().map(|&c| c as usize)),
+            None => Either::Right(op.moving_bodies_of(a).flat_map(move |k| op.incidence().contacts_of(k))),
+        }
+    }
+
+    /// Whether a table serves them.
+    pub fn tabled(&self) -> bool {
+        self.table.is_some()
     }
 }
 
@@ -449,9 +482,10 @@ impl MatrixFree {
         (self.rows[a], self.levers.get(a).copied())
     }
 
-    /// Each contact's neighbours (built once).
-    pub fn neighbours(&self) -> &Neighbours {
-        self.neighbours.get_or_init(|| Box::new(Neighbours::new(self)))
+    /// Each contact's neighbours (their table built once, where it stays small).
+    pub fn neighbours(&self) -> ContactNeighbours<'_> {
+        let table = self.neighbours.get_or_init(|| Neighbours::new(self).map(Box::new)).as_deref();
+        ContactNeighbours { op: self, table }
     }
 
     /// The bodies of contact `a` that can move (a contact between them and another one conflicts
@@ -724,6 +758,7 @@ mod tests {
     fn a_contacts_neighbours_are_the_contacts_of_its_moving_bodies_each_once() {
         let op = disks_in_a_row();
         let row = |op: &MatrixFree, a: usize| op.neighbours().of(a).collect::<Vec<_>>();
+        assert!(op.neighbours().tabled());
         assert_eq!(row(&op, 0), [0, 1, 8, 7]);
         assert_eq!(row(&op, 7), [0, 7]);
         assert_eq!(row(&op, 3), [3, 4, 11, 2, 10]);
@@ -732,5 +767,21 @@ mod tests {
         let pinned = MatrixFree { bodies, ..disks_in_a_row() };
         assert_eq!(row(&pinned, 0), [0, 7]);
         assert_eq!(row(&pinned, 8), Vec::<usize>::new());
+    }
+
+    /// A moving body under 40 grains would put 40 entries in each of its contacts' rows (1,600
+    /// in all, against 32 a contact): no table, and the bodies' lists give the same contacts in
+    /// the same order, the contact itself twice.
+    #[test]
+    fn a_body_with_many_contacts_keeps_no_neighbour_table() {
+        let bodies = vec![Body::dynamic(1.0, 0.5); 41];
+        let contacts: Vec<Contact> = (1..41)
+            .map(|i| Contact { i, j: Some(0), normal: [0.0, 1.0], lever_i: [0.0, -1.0], lever_j: [0.0, 1.0] })
+            .collect();
+        let op = MatrixFree::new(bodies, &contacts).unwrap();
+        let neighbours = op.neighbours();
+        assert!(!neighbours.tabled());
+        let row: Vec<usize> = neighbours.of(5).collect();
+        assert_eq!(row, [5].into_iter().chain(0..40).collect::<Vec<_>>());
     }
 }
