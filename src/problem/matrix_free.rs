@@ -242,17 +242,38 @@ impl Neighbours {
         if entries > Self::MAX_ROW * nc || entries >= u32::MAX as usize {
             return None;
         }
+        // Rows built by chunks of contacts on threads, then joined in order.
+        let chunk_rows = |chunk: usize| {
+            let (mut ends, mut list) = (Vec::with_capacity(CHUNK), Vec::with_capacity(16 * CHUNK));
+            for a in chunk * CHUNK..nc.min((chunk + 1) * CHUNK) {
+                let (row, c) = (list.len(), &m.rows[a]);
+                let mut own = row;
+                for k in [c.i, c.j] {
+                    if k == NO_BODY || m.bodies[k] == Body::fixed() {
+                        continue;
+                    }
+                    for &(b, _) in &incidence.list[incidence.start[k]..incidence.start[k + 1]] {
+                        // A body lists a contact once: only body j's may repeat body i's.
+                        if !list[row..own].contains(&(b as u32)) {
+                            list.push(b as u32);
+                        }
+                    }
+                    own = list.len();
+                }
+                ends.push(list.len() as u32);
+            }
+            (ends, list)
+        };
+        let chunks: Vec<(Vec<u32>, Vec<u32>)> = match parallel(nc) {
+            true => (0..nc.div_ceil(CHUNK)).into_par_iter().map(chunk_rows).collect(),
+            false => (0..nc.div_ceil(CHUNK)).map(chunk_rows).collect(),
+        };
         let (mut start, mut list) = (Vec::with_capacity(nc + 1), Vec::with_capacity(entries));
         start.push(0u32);
-        for a in 0..nc {
-            let row = list.len();
-            for c in m.moving_bodies_of(a).flat_map(|k| incidence.contacts_of(k)) {
-                let c = c as u32;
-                if !list[row..].contains(&c) {
-                    list.push(c);
-                }
-            }
-            start.push(list.len() as u32);
+        for (ends, rows) in chunks {
+            let offset = list.len() as u32;
+            start.extend(ends.iter().map(|end| offset + end));
+            list.extend_from_slice(&rows);
         }
         Some(Self { start, list })
     }
@@ -480,6 +501,11 @@ impl MatrixFree {
     /// [`Self::gather_rows`].
     pub(crate) fn rows_of(&self, a: usize) -> (ContactRows, Option<Levers>) {
         (self.rows[a], self.levers.get(a).copied())
+    }
+
+    /// Each contact's neighbours read from its bodies' contact lists, with no table built.
+    pub fn neighbours_from_bodies(&self) -> ContactNeighbours<'_> {
+        ContactNeighbours { op: self, table: None }
     }
 
     /// Each contact's neighbours (their table built once, where it stays small).

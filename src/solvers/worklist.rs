@@ -35,7 +35,7 @@ use super::monitor::Monitor;
 use super::nlgs::{block_colours, local_solve, threaded_sweep, update_rolling, update_shared, Sweep};
 use super::{SolveReport, SolverKind, SolverOptions};
 use crate::parallel::CHUNK;
-use crate::problem::matrix_free::{ContactRows, Levers, SharedSlice, Velocities};
+use crate::problem::matrix_free::{ContactNeighbours, ContactRows, Levers, SharedSlice, Velocities};
 use crate::problem::residual::{contact_velocity_residual_squared, free_velocity_bound};
 use crate::problem::{ContactProblem, MatrixFree};
 
@@ -60,6 +60,11 @@ pub const MAX_LIST_SHARE: f64 = 0.5;
 /// Full sweeps between two counts of the contacts above the threshold, while the error is
 /// everywhere.
 const FULL_SWEEPS: usize = 10;
+
+/// Sweeps' worth of list updates after which a solve builds its [`Record`]s and the operator's
+/// neighbour table (about 2 ms at 20,000 contacts, which short solves at loose tolerances would
+/// not win back).
+const FAST_PATHS_AFTER: usize = 1;
 
 /// What a residual evaluation reads of a contact, in one place: an evaluation of a neighbour
 /// would otherwise miss the cache once per array (rows, lever arms, `q`, diagonal, μ).
@@ -111,17 +116,24 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
     let mut state = p.w.sweep_state(&r);
     let mut threshold = threshold(p, opts.tol);
     let rolling = p.has_rolling();
-    let records: Vec<Record> = (0..nc)
-        .into_par_iter()
-        .with_min_len(CHUNK)
-        .map(|a| {
-            let (rows, levers) = op.rows_of(a);
-            Record { rows, levers, q: [p.q[2 * a], p.q[2 * a + 1]], w_nn: diag[a][0], mu: p.mu[a] }
-        })
-        .collect();
+    let record = |a: usize| {
+        let (rows, levers) = op.rows_of(a);
+        Record { rows, levers, q: [p.q[2 * a], p.q[2 * a + 1]], w_nn: diag[a][0], mu: p.mu[a] }
+    };
+    // The records and the neighbour table, once the list has made [`FAST_PATHS_AFTER`] sweeps'
+    // worth of updates: both cost about what that many updates save.
+    let mut records: Vec<Record> = Vec::new();
+    let mut neighbours = op.neighbours_from_bodies();
     // Whether contact `a`'s residual exceeds `threshold` (compared squared).
-    let above = |a: usize, r: &SharedSlice, v: &SharedSlice, threshold: f64| {
-        let k = &records[a];
+    let above = |records: &[Record], a: usize, r: &SharedSlice, v: &SharedSlice, threshold: f64| {
+        let built;
+        let k = match records.get(a) {
+            Some(k) => k,
+            None => {
+                built = record(a);
+                &built
+            }
+        };
         let g = op.gather_rows(&k.rows, k.levers.as_ref(), v);
         let u = [k.q[0] + g[0], k.q[1] + g[1]];
         let roll = rolling.then(|| (p.rolling[a], r.get(2 * nc + a), p.q[2 * nc + a] + op.gather_rolling(a, v)));
@@ -140,15 +152,17 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
     blocks.sort_by_key(|b| b.first);
     let firsts: Vec<usize> = blocks.iter().map(|b| b.first).collect();
     let owner = |a: usize| firsts.partition_point(|&first| first <= a) - 1;
-    let neighbours = op.neighbours();
     // A block's turn: its list worked through, up to its length of updates.
-    let turn = |b: &mut Block, threshold: f64, (mut r, mut v): (SharedSlice, SharedSlice)| {
+    let turn = |b: &mut Block,
+                threshold: f64,
+                (mut r, mut v): (SharedSlice, SharedSlice),
+                (records, neighbours): (&[Record], ContactNeighbours)| {
         let mut updates = 0;
         while updates < b.end - b.first {
             let Some(a) = b.list.pop_front() else { break };
             b.queued[a - b.first] = false;
             b.evaluations += 1;
-            if !above(a, &r, &v, threshold) {
+            if !above(records, a, &r, &v, threshold) {
                 continue;
             }
             update_shared(op, solves, a, &mut r, &mut v);
@@ -172,7 +186,7 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
             let shared = (SharedSlice::new(&mut r), SharedSlice::new(state.body_velocity_mut()));
             blocks.par_iter_mut().for_each(|b| {
                 for a in b.first..b.end {
-                    if above(a, &shared.0, &shared.1, threshold) {
+                    if above(&records, a, &shared.0, &shared.1, threshold) {
                         b.push(a);
                     }
                 }
@@ -197,13 +211,17 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
                 unobserved += blocks
                     .par_iter_mut()
                     .filter(|b| b.colour == colour)
-                    .map(|b| turn(b, threshold, shared))
+                    .map(|b| turn(b, threshold, shared, (&records, neighbours)))
                     .sum::<usize>();
                 // The moved contacts of other blocks, handed over in block order.
                 for k in 0..blocks.len() {
                     for a in std::mem::take(&mut blocks[k].outbox) {
                         blocks[owner(a)].push(a);
                     }
+                }
+                if records.is_empty() && blocks.iter().map(|b| b.updates).sum::<usize>() >= FAST_PATHS_AFTER * nc {
+                    records = (0..nc).into_par_iter().with_min_len(CHUNK).map(record).collect();
+                    neighbours = op.neighbours();
                 }
                 if blocks.iter().map(|b| b.list.len()).sum::<usize>() > everywhere {
                     // The error has spread everywhere: full sweeps.
