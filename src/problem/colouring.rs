@@ -140,11 +140,7 @@ impl Colouring {
 
     /// The neighbours of contact `a` in a matrix-free operator's contact graph.
     pub fn neighbours_in_matrix_free(m: &MatrixFree) -> impl Fn(usize, &mut Vec<usize>) + '_ {
-        move |a, out| {
-            for k in m.moving_bodies_of(a) {
-                out.extend(m.incidence().contacts_of(k).filter(|&b| b != a));
-            }
-        }
+        move |a, out| out.extend(m.neighbours_from_bodies().of(a).filter(|&b| b != a))
     }
 
     /// The neighbours of contact `a` in `w`'s contact graph (for checking a colouring).
@@ -182,22 +178,20 @@ pub fn pattern_adjacency<I: Iterator<Item = usize>>(n: usize, row: impl Fn(usize
 /// Gives each contact still uncoloured (`usize::MAX`), in index order, the smallest colour none
 /// of its neighbours (contacts sharing a moving body) has; the colours taken are kept in a bit set.
 fn greedy_fill(m: &MatrixFree, colour: &mut [usize]) {
-    let incidence = m.incidence();
+    let neighbours = m.neighbours_from_bodies();
     let mut taken: Vec<u64> = Vec::new();
     for a in 0..colour.len() {
         if colour[a] != usize::MAX {
             continue;
         }
         taken.iter_mut().for_each(|w| *w = 0);
-        for k in m.moving_bodies_of(a) {
-            for b in incidence.contacts_of(k) {
-                let c = colour[b];
-                if c != usize::MAX {
-                    if c / 64 >= taken.len() {
-                        taken.resize(c / 64 + 1, 0);
-                    }
-                    taken[c / 64] |= 1 << (c % 64);
+        for b in neighbours.of(a) {
+            let c = colour[b];
+            if c != usize::MAX {
+                if c / 64 >= taken.len() {
+                    taken.resize(c / 64 + 1, 0);
                 }
+                taken[c / 64] |= 1 << (c % 64);
             }
         }
         let word = taken.iter().position(|w| *w != u64::MAX).unwrap_or(taken.len());

@@ -147,7 +147,7 @@ pub(super) fn project_positions(
 fn project_locally(op: &MatrixFree, q: &[f64], slack: &[f64], max_updates: usize) -> Result<Vec<f64>, Vec<f64>> {
     let nc = op.n_contacts();
     let diag = op.diag_blocks();
-    let incidence = op.incidence();
+    let neighbours = op.neighbours_from_bodies();
     let mut p = vec![0.0; 2 * nc];
     let mut dx = vec![0.0; op.dofs().per_body() * op.n_bodies()];
     let beyond = |a: usize, dx: &[f64]| q[2 * a] + op.gather_one(a, dx)[0] < -slack[a];
@@ -168,12 +168,10 @@ fn project_locally(op: &MatrixFree, q: &[f64], slack: &[f64], max_updates: usize
         updates += 1;
         p[2 * a] = pn;
         op.scatter_one(a, change, 0.0, &mut dx[..]);
-        for body in op.moving_bodies_of(a) {
-            for b in incidence.contacts_of(body) {
-                if !queued[b] && beyond(b, &dx) {
-                    queued[b] = true;
-                    work.push_back(b);
-                }
+        for b in neighbours.of(a) {
+            if !queued[b] && beyond(b, &dx) {
+                queued[b] = true;
+                work.push_back(b);
             }
         }
     }
