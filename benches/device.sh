@@ -5,7 +5,8 @@
 #   MOREAU=target/release/moreau PEERS=target/release/deps/peers-<hash> OUT=dir bash benches/device.sh
 # BASELINE=another/moreau adds its GPU steps beside MOREAU's (a change measured side by side);
 # LATTICES=0 leaves out `moreau bench`; SWEEPS=0 the sweep anatomy (`bench --scene`); PEERS_DEVICES=gpu leaves out the CPU rows of the peers;
-# CROSSING=0 the piles of 400-4,000 disks on both devices (where `auto`'s GPU_MIN_BODIES should lie).
+# CROSSING=0 the piles of 400-4,000 disks on both devices (where `auto`'s GPU_MIN_BODIES should lie);
+# MIXING=0 the Anderson-against-plain GPU runs; CPU_ROWS=0 the sandbox's CPU runs (a short lease).
 # Writes OUT/device.log (every table, with the device each one ran on) and OUT/runs.tgz (each
 # run's steps.csv and summary.json, the peer table and chart).
 set -u
@@ -57,7 +58,7 @@ gpu_steps() {
 }
 [ -n "$BASELINE" ] && gpu_steps baseline "$BASELINE"
 gpu_steps moreau "$MOREAU"
-if [ -n "$settled" ]; then
+if [ -n "$settled" ] && [ "${MIXING:-1}" != 0 ]; then
     # Mixing against plain sweeps on the GPU, same binary: where Anderson cuts sweeps (the 400-disk
     # pile) and where its f32 mixing stalls (the settled pile run to convergence).
     for anderson in 0 5; do
@@ -73,8 +74,8 @@ if [ -z "$BASELINE" ]; then
     say "the sandbox's first step to 1e-4: 100,000 GPU sweeps; focused sweeps on $THREADS cores (20,000 sweeps' worth)"
     timeout 60 "$MOREAU" run scenes/sandbox.toml --device gpu --steps 1 --max-iter 100000 --vtk-every 0 --quiet \
         --out "$OUT/runs/sandbox_gpu_1e4" 2>&1 | tee -a "$log"
-    timeout 90 "$MOREAU" run scenes/sandbox.toml --device cpu --threads "$THREADS" --steps 1 --max-iter 20000 --focus 19 \
-        --anderson 0 --vtk-every 0 --quiet --out "$OUT/runs/sandbox_cpu_focus_1e4" 2>&1 | tee -a "$log"
+    [ "${CPU_ROWS:-1}" != 0 ] && timeout 90 "$MOREAU" run scenes/sandbox.toml --device cpu --threads "$THREADS" --steps 1 \
+        --max-iter 20000 --focus 19 --anderson 0 --vtk-every 0 --quiet --out "$OUT/runs/sandbox_cpu_focus_1e4" 2>&1 | tee -a "$log"
 fi
 if [ "${CROSSING:-1}" != 0 ]; then
     # scenes/pile.toml with more disks in a box grown with them: the first 100 steps on each device.
@@ -94,7 +95,7 @@ fi
 say "sandbox on the GPU, PCPG tol 1e-4"
 timeout 60 "$MOREAU" run scenes/sandbox.toml --device gpu --solver pcpg --steps 5 --vtk-every 0 --quiet \
     --out "$OUT/runs/sandbox_gpu_pcpg" 2>&1 | tee -a "$log"
-if [ -z "$BASELINE" ]; then
+if [ -z "$BASELINE" ] && [ "${CPU_ROWS:-1}" != 0 ]; then
     say "sandbox on the CPU, $THREADS threads, tol 1e-4"
     timeout 60 "$MOREAU" run scenes/sandbox.toml --device cpu --threads "$THREADS" --steps 2 --vtk-every 0 --quiet \
         --out "$OUT/runs/sandbox_cpu" 2>&1 | tee -a "$log"
