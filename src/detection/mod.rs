@@ -67,11 +67,21 @@ impl Configuration<'_> {
     }
 }
 
+/// The grid's candidate pairs are sought this share of the bodies' mean bounding radius farther
+/// than the alert distance, and kept while no body has moved (or grown its reach) by half that
+/// since: a settled pile's bodies move micrometres a step, and the grid is most of detection.
+pub const PAIR_SKIN: f64 = 0.1;
+
 /// Reusable detection buffers.
 #[derive(Default)]
 pub struct Detector {
     grid: broad_phase::Grid,
     pairs: Vec<(u32, u32)>,
+    /// Where the kept candidate pairs were sought (non-periodic detection only).
+    kept: Option<KeptPairs>,
+    /// Grid searches made, and detections that reused their pairs.
+    searches: usize,
+    reuses: usize,
     radius: Vec<f64>,
     /// With a periodic cell: the bodies and their images near the boundary, the body and shift
     /// of each image, and the pairs through the boundary (i < j, the shift of j).
@@ -80,7 +90,52 @@ pub struct Detector {
     periodic_pairs: Vec<(u32, u32, f64)>,
 }
 
+/// The configuration the kept candidate pairs were sought in: a pair closer than `alert` now was
+/// within `alert + skin` then while each body's displacement plus the growth of its radius (its
+/// reach in the step) stays under half the skin.
+struct KeptPairs {
+    position: Vec<DVec2>,
+    radius: Vec<f64>,
+    alert: f64,
+    skin: f64,
+}
+
+impl KeptPairs {
+    fn hold(&self, position: &[DVec2], radius: &[f64], alert: f64) -> bool {
+        let half = 0.5 * self.skin;
+        position.len() == self.position.len()
+            && alert == self.alert
+            && (0..position.len())
+                .all(|k| position[k].distance(self.position[k]) + (radius[k] - self.radius[k]).max(0.0) <= half)
+    }
+}
+
 impl Detector {
+    /// Grid searches made so far, and detections that reused the last search's pairs.
+    pub fn searches_and_reuses(&self) -> (usize, usize) {
+        (self.searches, self.reuses)
+    }
+
+    /// The grid's candidate pairs for a non-periodic configuration: those of the last search
+    /// while they still hold, else a new search with the skin. The narrow phase then keeps
+    /// exactly the pairs within reach, so the contacts are those of a search made now.
+    fn candidate_pairs(&mut self, bodies: &Bodies, position: &[DVec2], alert: f64) {
+        if self.kept.as_ref().is_some_and(|k| k.hold(position, &self.radius, alert)) {
+            self.reuses += 1;
+            return;
+        }
+        let n = bodies.len().max(1) as f64;
+        let skin = PAIR_SKIN * bodies.bounding_radius.iter().sum::<f64>() / n;
+        self.grid.candidate_pairs(position, &self.radius, alert + skin, &mut self.pairs);
+        self.searches += 1;
+        self.kept = skin.is_finite().then(|| KeptPairs {
+            position: position.to_vec(),
+            radius: self.radius.clone(),
+            alert,
+            skin,
+        });
+    }
+
     /// All contacts with a gap below `alert`, sorted by (i, antagonist, feature).
     /// `reach[k]` bounds how far body `k` moves within the step (0 for a static snapshot), and
     /// `wall_reach[w]` how far wall `w` does: a pair is tested when it could come within
@@ -97,8 +152,11 @@ impl Detector {
         self.radius.clear();
         self.radius.extend((0..bodies.len()).map(|k| bodies.bounding_radius[k] + reach.get(k).copied().unwrap_or(0.0)));
         match config.periodic {
-            None => self.grid.candidate_pairs(config.position, &self.radius, alert, &mut self.pairs),
-            Some(cell) => self.periodic_candidates(config.position, cell, alert),
+            None => self.candidate_pairs(bodies, config.position, alert),
+            Some(cell) => {
+                self.kept = None;
+                self.periodic_candidates(config.position, cell, alert)
+            }
         }
         let reach_of = |k: usize| reach.get(k).copied().unwrap_or(0.0);
         let pair_contacts = |pairs: &[(u32, u32)], out: &mut Vec<DetectedContact>| {
@@ -198,5 +256,56 @@ impl Detector {
         }));
         all.retain(|&(a, b)| a < n32 && b < n32);
         self.pairs = all;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::world::BodySpec;
+    use rand::{Rng, SeedableRng};
+
+    /// Disks and pentagons in a box, moved a little each call: a detector that keeps its
+    /// candidate pairs finds, every time, exactly the contacts of a fresh one, reusing its pairs
+    /// while the moves are small and searching again after a large move or a grown reach.
+    #[test]
+    fn kept_candidate_pairs_give_the_contacts_of_a_fresh_search() {
+        let mut rng = rand::rngs::SmallRng::seed_from_u64(17);
+        let mut bodies = Bodies::new(true);
+        for k in 0..600 {
+            let c = DVec2::new(rng.gen_range(0.0..12.0), rng.gen_range(0.0..12.0));
+            let r = rng.gen_range(0.2..0.3);
+            let spec = match k % 3 {
+                0 => BodySpec::regular_polygon(c, r, 5, rng.gen_range(0.0..1.0), 0),
+                _ => BodySpec::disk(c, r, 0),
+            };
+            bodies.add(&spec, 1.0).unwrap();
+        }
+        let walls = [Wall::segment(DVec2::new(0.0, 0.0), DVec2::new(12.0, 0.0), 0)];
+        let (alert, mean_radius) = (0.01, 0.25);
+        let mut kept = Detector::default();
+        let mut position = bodies.position.clone();
+        let mut angle = bodies.angle.clone();
+        let mut contacts_seen = 0;
+        let skin = PAIR_SKIN * mean_radius;
+        for call in 0..40 {
+            // Moves of a twentieth of half the skin a call; at call 5 a move of up to two skins.
+            // At call 25 every reach grows by 1.5 skins.
+            let step = if call == 5 { 2.0 * skin } else { 0.05 * 0.5 * skin };
+            for k in 0..position.len() {
+                position[k] += DVec2::new(rng.gen_range(-step..step), rng.gen_range(-step..step));
+                angle[k] += rng.gen_range(-0.05..0.05);
+            }
+            let grown = if call == 25 { 1.5 * skin } else { 0.0 };
+            let reach: Vec<f64> = (0..position.len()).map(|_| grown + rng.gen_range(0.0..0.001)).collect();
+            let config = Configuration { position: &position, angle: &angle, periodic: None };
+            let found = kept.detect(&bodies, &config, &walls, alert, &reach, &[0.0]);
+            let fresh = Detector::default().detect(&bodies, &config, &walls, alert, &reach, &[0.0]);
+            assert_eq!(found, fresh, "call {call}");
+            contacts_seen += found.len();
+        }
+        let (searches, reuses) = kept.searches_and_reuses();
+        assert!(contacts_seen > 40 * 100, "{contacts_seen} contacts");
+        assert!(reuses > 20 && searches >= 3, "{searches} searches, {reuses} reuses");
     }
 }
