@@ -9,7 +9,8 @@
 //! settling steps), _LEAD (untimed steps of each configuration), _STEPS and _THREADS (moreau's
 //! thread counts, `1,16`; default one and all cores) change it; MOREAU_PEERS_DEVICES=cpu,gpu adds
 //! rows solved on a GPU, which take the last thread count for detection; MOREAU_PEERS_ONLY runs
-//! only the rows it names, `;`-separated, as the table names their settings).
+//! only the rows it names, `;`-separated, as the table names their settings; MOREAU_PEERS_SETTLE=gpu
+//! settles on a GPU, kept as settled_<scene>_<warmup>_<threads>_gpu.json).
 //! The settled state is kept in target/peers/settled_<scene>_<warmup>_<threads>.json and read
 //! back by the next run of the same scene file. Writes target/peers/peers.csv and peers.svg/.png (largest overlap against milliseconds per
 //! step, one curve per engine). rapier2d is built without its `parallel` feature, so it runs on
@@ -241,12 +242,21 @@ fn main() {
 /// the settled world and the checkpoint every moreau configuration restarts from. Kept in
 /// target/peers/ (checked against the scene file) so that a second run times without settling.
 fn settle(path: &Path, scene: moreau::scene::Scene, warmup: usize, threads: usize) -> (World, Checkpoint) {
-    let kept = Path::new("target/peers").join(format!("settled_{}_{warmup}_{threads}.json", scene.name));
+    // MOREAU_PEERS_SETTLE=gpu settles on a GPU: the 40,000-disk pile's 300 steps take half a
+    // minute there and most of an hour on 16 cores. Its state is kept under its own name.
+    let device = std::env::var("MOREAU_PEERS_SETTLE")
+        .ok()
+        .map(|d| DeviceChoice::from_name(d.trim()).unwrap_or_else(|e| panic!("MOREAU_PEERS_SETTLE: {e}")));
+    let on = device.filter(|&d| d != DeviceChoice::Cpu).map_or(String::new(), |_| "_gpu".into());
+    let kept = Path::new("target/peers").join(format!("settled_{}_{warmup}_{threads}{on}.json", scene.name));
     let mut sim = Simulation::new(scene.world, scene.settings).expect("a valid scene");
     if let Ok(c) = read_checkpoint(&kept, path) {
         sim.restore(&c).expect("the kept settled state");
         eprintln!("settled state read from {}", kept.display());
         return (sim.world.clone(), c);
+    }
+    if let Some(device) = device.filter(|&d| d != DeviceChoice::Cpu) {
+        eprintln!("settling: {}", sim.choose_device(device).unwrap_or_else(|e| panic!("{e}")));
     }
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a thread pool");
     pool.install(|| {
