@@ -244,10 +244,11 @@ fn main() {
 fn settle(path: &Path, scene: moreau::scene::Scene, warmup: usize, threads: usize) -> (World, Checkpoint) {
     // MOREAU_PEERS_SETTLE=gpu settles on a GPU: the 40,000-disk pile's 300 steps take half a
     // minute there and most of an hour on 16 cores. Its state is kept under its own name.
-    let device = std::env::var("MOREAU_PEERS_SETTLE")
+    let gpu = std::env::var("MOREAU_PEERS_SETTLE")
         .ok()
-        .map(|d| DeviceChoice::from_name(d.trim()).unwrap_or_else(|e| panic!("MOREAU_PEERS_SETTLE: {e}")));
-    let on = device.filter(|&d| d != DeviceChoice::Cpu).map_or(String::new(), |_| "_gpu".into());
+        .map(|d| DeviceChoice::from_name(d.trim()).unwrap_or_else(|e| panic!("MOREAU_PEERS_SETTLE: {e}")))
+        .filter(|&d| d != DeviceChoice::Cpu);
+    let on = if gpu.is_some() { "_gpu" } else { "" };
     let kept = Path::new("target/peers").join(format!("settled_{}_{warmup}_{threads}{on}.json", scene.name));
     let mut sim = Simulation::new(scene.world, scene.settings).expect("a valid scene");
     if let Ok(c) = read_checkpoint(&kept, path) {
@@ -255,7 +256,7 @@ fn settle(path: &Path, scene: moreau::scene::Scene, warmup: usize, threads: usiz
         eprintln!("settled state read from {}", kept.display());
         return (sim.world.clone(), c);
     }
-    if let Some(device) = device.filter(|&d| d != DeviceChoice::Cpu) {
+    if let Some(device) = gpu {
         eprintln!("settling: {}", sim.choose_device(device).unwrap_or_else(|e| panic!("{e}")));
     }
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a thread pool");

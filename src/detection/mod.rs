@@ -111,11 +111,6 @@ impl KeptPairs {
 }
 
 impl Detector {
-    /// Grid searches made so far, and detections that reused the last search's pairs.
-    pub fn searches_and_reuses(&self) -> (usize, usize) {
-        (self.searches, self.reuses)
-    }
-
     /// The grid's candidate pairs for a non-periodic configuration: those of the last search
     /// while they still hold, else a new search with the skin. The narrow phase then keeps
     /// exactly the pairs within reach, so the contacts are those of a search made now.
@@ -304,7 +299,7 @@ mod tests {
             assert_eq!(found, fresh, "call {call}");
             contacts_seen += found.len();
         }
-        let (searches, reuses) = kept.searches_and_reuses();
+        let (searches, reuses) = (kept.searches, kept.reuses);
         assert!(contacts_seen > 40 * 100, "{contacts_seen} contacts");
         assert!(reuses > 20 && searches >= 3, "{searches} searches, {reuses} reuses");
     }

@@ -246,13 +246,10 @@ impl Neighbours {
         let chunk_rows = |chunk: usize| {
             let (mut ends, mut list) = (Vec::with_capacity(CHUNK), Vec::with_capacity(16 * CHUNK));
             for a in chunk * CHUNK..nc.min((chunk + 1) * CHUNK) {
-                let (row, c) = (list.len(), &m.rows[a]);
+                let row = list.len();
                 let mut own = row;
-                for k in [c.i, c.j] {
-                    if k == NO_BODY || m.bodies[k] == Body::fixed() {
-                        continue;
-                    }
-                    for &(b, _) in &incidence.list[incidence.start[k]..incidence.start[k + 1]] {
+                for k in m.moving_bodies_of(a) {
+                    for b in incidence.contacts_of(k) {
                         // A body lists a contact once: only body j's may repeat body i's.
                         if !list[row..own].contains(&(b as u32)) {
                             list.push(b as u32);

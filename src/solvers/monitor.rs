@@ -43,8 +43,6 @@ pub struct Monitor<'a> {
     /// `scratch_u = W r + q` of the iterate of this iteration, with its (error, judged): the
     /// final report of a solve stopped right after a check needs no product of its own.
     scratch_check: Option<(usize, f64, f64)>,
-    /// The next observation checks whatever the cadence says ([`Monitor::observe_with_product`]).
-    force_check: bool,
     iterates: Vec<Vec<f64>>,
     /// The checked iterate with the smallest judged error, returned if the solve does not converge.
     best: Option<(f64, Vec<f64>)>,
@@ -75,7 +73,6 @@ impl<'a> Monitor<'a> {
             products_seen: 0,
             scratch_u: vec![0.0; r0.len()],
             scratch_check: None,
-            force_check: false,
             iterates: Vec::new(),
             best: None,
             notes: Vec::new(),
@@ -132,15 +129,17 @@ impl<'a> Monitor<'a> {
     /// [`Self::observe`], with the full check made now on a product of its own, which
     /// [`Self::finish`] reuses when this iterate is the one returned.
     pub fn observe_with_product(&mut self, r: &[f64]) -> bool {
-        self.force_check = true;
-        let stop = self.observe(r, None);
-        self.force_check = false;
-        stop
+        self.observe_checking(r, None, true)
     }
 
     /// Called once per iteration with the new iterate (and `u = W r + q` if the solver has it).
     /// Returns true when the solve must stop.
     pub fn observe(&mut self, r: &[f64], u: Option<&[f64]>) -> bool {
+        self.observe_checking(r, u, false)
+    }
+
+    /// [`Self::observe`]; with `check`, the full check is made whatever the cadence says.
+    fn observe_checking(&mut self, r: &[f64], u: Option<&[f64]>, check: bool) -> bool {
         self.iteration += 1;
         if r.iter().any(|x| !x.is_finite()) {
             self.stop_with(StopReason::Diverged, "diverged: the iterate holds NaN or Inf");
@@ -168,7 +167,7 @@ impl<'a> Monitor<'a> {
         let history_due = self.opts.history_every > 0 && self.iteration.is_multiple_of(self.opts.history_every);
         match self.opts.criterion {
             StopCriterion::Natural | StopCriterion::Velocity => {
-                let needed = u.is_some() || self.force_check || light <= self.tol_light || last || cost_due;
+                let needed = u.is_some() || check || light <= self.tol_light || last || cost_due;
                 if needed || history_due {
                     let (err, judged) = self.full_error(r, u, !needed);
                     if needed {
