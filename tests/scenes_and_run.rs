@@ -261,6 +261,9 @@ fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["steps"], 40);
     assert_eq!(summary["device"], "cpu");
+    // The pile's grains rest on a floor: the velocity scale is at least a step of gravity.
+    assert_eq!(summary["criterion"], "natural");
+    assert!(summary["max_velocity_scale"].as_f64().unwrap() >= 9.81 * 1e-3 * 0.999, "{summary}");
     for f in [
         "grains.pvd",
         "contacts.pvd",

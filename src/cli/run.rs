@@ -135,6 +135,7 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         threads: rayon::current_num_threads(),
         solver: scene.settings.solver.name().to_string(),
         tol: scene.settings.options.tol,
+        criterion: scene.settings.options.criterion.name().to_string(),
         effects: scene.world.effects.names().iter().map(|s| s.to_string()).collect(),
         bodies: scene.world.bodies.len(),
         ..RunSummary::default()

@@ -43,6 +43,7 @@ struct Row {
     gpu_judged: usize,
     gpu_judge_seconds: f64,
     gpu_discarded: usize,
+    velocity_scale: f64,
 }
 
 /// One row of `walls.csv`: a wall's position and the grains' mean force and moment on it.
@@ -89,6 +90,8 @@ pub struct RunSummary {
     pub solver: String,
     /// Its tolerance.
     pub tol: f64,
+    /// What judged convergence (`natural`, `velocity`, LMGC90's tests).
+    pub criterion: String,
     /// The effects on.
     pub effects: Vec<String>,
     /// Bodies at the start.
@@ -111,6 +114,9 @@ pub struct RunSummary {
     pub unconverged_steps: usize,
     /// The largest error of any step.
     pub max_error: f64,
+    /// The largest of the steps' `velocity_scale` (m/s): under the velocity test, the loosest
+    /// bound a contact was held to is `tol` times it.
+    pub max_velocity_scale: f64,
     /// Iterations (NLGS: sweeps) per step: mean, median, 95th percentile, largest.
     pub mean_iterations: f64,
     /// See `mean_iterations`.
@@ -162,6 +168,7 @@ impl RunSummary {
             self.unconverged_steps += 1;
         }
         self.max_error = self.max_error.max(r.error);
+        self.max_velocity_scale = self.max_velocity_scale.max(r.velocity_scale);
         self.mean_iterations += (r.iterations as f64 - self.mean_iterations) / self.steps as f64;
         self.max_iterations = self.max_iterations.max(r.iterations);
         self.iterations.push(r.iterations);
@@ -194,7 +201,7 @@ impl RunSummary {
     pub fn line(&self) -> String {
         let total: usize = self.iterations.iter().sum();
         format!(
-            "{}: {} steps in {:.3} s ({:.1} steps/s; solve {:.0} %, projection {:.0} %), device {} ({} threads), {} tol {:.0e}: {}/{} steps converged (max error {:.2e}), iterations mean {:.1} median {} p95 {} max {} ({} at max_iter{}), contacts mean {:.0}, max penetration {:.2e} of the mean diameter, final kinetic energy {:.3e}",
+            "{}: {} steps in {:.3} s ({:.1} steps/s; solve {:.0} %, projection {:.0} %), device {} ({} threads), {} tol {:.0e}: {}/{} steps converged (max error {:.2e}{}), iterations mean {:.1} median {} p95 {} max {} ({} at max_iter{}), contacts mean {:.0}, max penetration {:.2e} of the mean diameter, final kinetic energy {:.3e}",
             self.scene,
             self.steps,
             self.seconds,
@@ -208,6 +215,10 @@ impl RunSummary {
             self.converged_steps,
             self.steps,
             self.max_error,
+            match self.criterion.as_str() {
+                "velocity" => format!("; each contact held to tol × up to {:.3} m/s", self.max_velocity_scale),
+                _ => String::new(),
+            },
             self.mean_iterations,
             self.median_iterations,
             self.p95_iterations,
@@ -336,6 +347,7 @@ impl RunOutput {
             gpu_judged: r.gpu_checks.judged,
             gpu_judge_seconds: r.gpu_checks.judge_seconds,
             gpu_discarded: r.gpu_checks.discarded,
+            velocity_scale: r.velocity_scale,
         })?;
         Ok(())
     }

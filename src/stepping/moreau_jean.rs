@@ -25,6 +25,7 @@ use crate::detection::{Antagonist, Configuration, DetectedContact, Detector};
 use crate::problem::colouring::Colouring;
 use crate::problem::cone::status_of;
 use crate::problem::matrix_free::Dofs;
+use crate::problem::residual::free_velocity_bound;
 use crate::problem::{Body, Contact, ContactProblem, Delassus, MatrixFree};
 use crate::solvers::StopReason;
 use crate::world::{Wall, World};
@@ -405,11 +406,13 @@ fn apply(
         solve_seconds: 0.0,
         projection_seconds: 0.0,
         gpu_checks: Default::default(),
+        velocity_scale: 0.0,
     };
     let mut v_end = v_free;
     let mut impulses = Vec::new();
     if let (Some(local), Some((solved, seconds))) = (&problem, solved) {
         report.solve_seconds = seconds;
+        report.velocity_scale = free_velocity_bound(&local.q, &local.gap_rate);
         report.iterations = solved.iterations;
         report.gpu_iterations = solved.gpu_iterations();
         report.error = solved.judged_error;
