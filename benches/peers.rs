@@ -14,7 +14,8 @@
 //! The settled state is kept in target/peers/settled_<scene>_<warmup>_<threads>.json and read
 //! back by the next run of the same scene file. Writes target/peers/peers.csv and peers.svg/.png (largest overlap against milliseconds per
 //! step, one curve per engine). rapier2d is built without its `parallel` feature, so it runs on
-//! one thread; moreau's rows say their thread count.
+//! one thread; moreau's rows say their thread count, and under the velocity test the bound each
+//! contact was held to (tol times the largest free velocity of the run's steps).
 
 #[path = "peers/scene.rs"]
 mod scene;
@@ -187,7 +188,8 @@ fn main() {
                 _ => unreachable!(),
             };
             let world = s.world.clone();
-            let ((ms, mean, max, contacts, ke), unconverged) = pool.install(|| {
+            let velocity_test = s.settings.options.criterion == StopCriterion::Velocity;
+            let ((ms, mean, max, contacts, ke), unconverged, scale) = pool.install(|| {
                 let mut sim = Simulation::new(s.world, s.settings).expect("a valid scene");
                 sim.restore(&checkpoint).expect("the settled state");
                 if on_gpu {
@@ -198,6 +200,7 @@ fn main() {
                 }
                 let sim = std::cell::RefCell::new(sim);
                 let unconverged = std::cell::Cell::new(0usize);
+                let scale = std::cell::Cell::new(0.0f64);
                 let measured = measure(
                     &world,
                     lead,
@@ -207,6 +210,7 @@ fn main() {
                         if !r.converged && tol.is_some() {
                             unconverged.set(unconverged.get() + 1);
                         }
+                        scale.set(scale.get().max(r.velocity_scale));
                         r.seconds
                     },
                     || {
@@ -214,12 +218,18 @@ fn main() {
                         (sim.world.bodies.position.clone(), sim.world.bodies.velocity.clone())
                     },
                 );
-                (measured, unconverged.get())
+                (measured, unconverged.get(), scale.get())
             });
-            let note = match unconverged {
-                0 => String::new(),
-                n => format!("{n} of {} steps missed tol", lead + steps),
-            };
+            let mut notes = Vec::new();
+            if unconverged > 0 {
+                notes.push(format!("{unconverged} of {} steps missed tol", lead + steps));
+            }
+            // What the velocity test held each contact to: tol times the step's largest free
+            // velocity, which a few fast grains set (BENCHMARKS.md, "The velocity test's scale").
+            if let (Some(tol), true) = (tol, velocity_test) {
+                notes.push(format!("each contact within {:.1e} m/s", tol * scale));
+            }
+            let note = notes.join("; ");
             let engine = if on_gpu { "moreau gpu" } else { "moreau" };
             eprintln!("{engine} {setting} ({t} threads): {ms:.1} ms/step, max overlap {max:.3e} d {note}");
             rows.push(Row {
