@@ -106,6 +106,9 @@ pub struct MoreauStepReport {
     pub seconds: f64,
     /// Of `iterations`, those run on a GPU (the rest of a GPU step: its f64 finish on the CPU).
     pub gpu_iterations: usize,
+    /// The largest free velocity of the step's contacts (velocity units): under the velocity
+    /// test every contact's residual was held to `tol` times it.
+    pub velocity_scale: f64,
 }
 
 /// One contact of the last step.
@@ -508,6 +511,7 @@ pub extern "C" fn moreau_simulation_step(sim: *mut MoreauSimulation, report: *mu
             max_penetration: r.max_penetration,
             seconds: r.seconds,
             gpu_iterations: r.gpu_iterations,
+            velocity_scale: r.velocity_scale,
         };
         copy_out(&[out], report, 1, "report")
     })

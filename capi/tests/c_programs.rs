@@ -157,9 +157,14 @@ fn a_c_program_steps_a_pile_as_the_library_does() {
     assert_eq!(code, Some(0), "{out}{err}");
     let mut sim = Simulation::from_scene(&scene).unwrap();
     sim.set_threads(1).unwrap();
+    let mut last = None;
     for _ in 0..40 {
-        assert!(sim.step().unwrap().converged);
+        let r = sim.step().unwrap();
+        assert!(r.converged);
+        last = Some(r);
     }
+    let scale = last.unwrap().velocity_scale;
+    assert!((field(&out, "velocity_scale") - scale).abs() <= 1e-8 * scale, "{out}: Rust's scale {scale:.9e}");
     let top = sim.positions().iter().map(|p| p.y).fold(0.0, f64::max);
     let sum: f64 = sim.contacts().iter().map(|c| c.impulse[0]).sum();
     assert_eq!(field(&out, "bodies") as usize, sim.body_count());

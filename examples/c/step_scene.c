@@ -65,8 +65,8 @@ int main(int argc, char **argv) {
     }
     printf("steps %zu time %.6f bodies %zu contacts %zu unconverged %d\n", report.step, moreau_simulation_time(sim),
            bodies, count, unconverged);
-    printf("last step: iterations %zu error %.3e max_penetration %.3e top %.6f sum_rn %.9e\n", report.iterations,
-           report.error, report.max_penetration, top, normal_sum);
+    printf("last step: iterations %zu error %.3e max_penetration %.3e velocity_scale %.9e top %.6f sum_rn %.9e\n",
+           report.iterations, report.error, report.max_penetration, report.velocity_scale, top, normal_sum);
     free(xy);
     free(contacts);
     moreau_simulation_free(sim);
