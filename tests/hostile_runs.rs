@@ -254,3 +254,34 @@ fn messages_say_things_once_and_cite_nothing_missing() {
     let readme = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
     assert!(!readme.contains("notes §"), "README cites notes that are not in the repository");
 }
+
+/// Under the velocity test a run says when its bound was far looser than a step of gravity: a
+/// grain sliding down a wall at 3 m/s beside a resting stack sets the scale of every contact.
+#[test]
+fn a_run_warns_when_a_fast_grain_loosens_the_velocity_tests_bound() {
+    let scene = |sliding: bool| {
+        let mut s = String::from(
+            "effects = [\"gravity\", \"friction\"]\n[time]\nstep = 1e-3\nsteps = 2\n[solver]\nname = \"nlgs\"\n\
+             tol = 1e-6\ncriterion = \"velocity\"\n[contact]\nfriction = 0.5\n[[material]]\nname = \"g\"\n\
+             density = 1.0\n[[wall]]\nsegment = [[-1.0, 0.0], [4.0, 0.0]]\n[[wall]]\nsegment = [[3.5, 0.0], [3.5, 9.0]]\n",
+        );
+        for k in 0..4 {
+            s.push_str(&format!("[[body]]\ndisk = {{ center = [0.0, {}], radius = 0.5 }}\n", 0.5 + k as f64));
+        }
+        if sliding {
+            s.push_str("[[body]]\ndisk = { center = [3.0, 5.0], radius = 0.5 }\nvelocity = [0.0, -3.0]\n");
+        }
+        s
+    };
+    let (resting, _) = run_scene("velocity_scale_resting", &scene(false), &[]);
+    assert!(resting.status.success(), "{}", stderr(&resting));
+    assert!(!stderr(&resting).contains("a step of gravity"), "{}", stderr(&resting));
+    let (sliding, out) = run_scene("velocity_scale_sliding", &scene(true), &[]);
+    let e = stderr(&sliding);
+    assert!(sliding.status.success(), "{e}");
+    // 3 m/s and two steps of gravity: about 300 steps of gravity.
+    assert!(e.contains("tol × up to 3.0") && e.contains("308× a step of gravity"), "{e}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["criterion"], "velocity");
+}
