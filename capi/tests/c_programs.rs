@@ -67,9 +67,13 @@ fn the_committed_header_is_what_the_library_exports() {
     }
 }
 
-/// Compiles `examples/c/<name>.c` against the header and the library; returns the program.
+/// Compiles `examples/c/<name>.c` against the header and the library; returns the program, one
+/// file per call: tests run in parallel, and a program rewritten while another test runs it
+/// fails to start.
 fn compile(name: &str) -> PathBuf {
-    let out = std::env::temp_dir().join(format!("moreau_c_{name}_{}", std::process::id()));
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let out = std::env::temp_dir().join(format!("moreau_c_{name}_{}_{call}", std::process::id()));
     let lib = library_dir();
     let status = Command::new("cc")
         .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-O1", "-I"])
