@@ -391,14 +391,7 @@ fn a_semicircular_arch_of_voussoirs_stands() {
 fn the_reported_velocity_scale_is_a_step_of_gravity_at_rest_and_follows_a_sliding_grain() {
     let stack = |sliding: bool| {
         let mut s = header(r#""gravity", "friction""#, 1e-3, 1, "nlgs", 1e-8, 0.5);
-        s.push_str("[[material]]\nname = \"g\"\ndensity = 1.0\n");
-        s.push_str("[[wall]]\nsegment = [[-1.0, 0.0], [4.0, 0.0]]\n[[wall]]\nsegment = [[3.5, 0.0], [3.5, 9.0]]\n");
-        for k in 0..4 {
-            s.push_str(&format!("[[body]]\ndisk = {{ center = [0.0, {}], radius = 0.5 }}\n", 0.5 + k as f64));
-        }
-        if sliding {
-            s.push_str("[[body]]\ndisk = { center = [3.0, 5.0], radius = 0.5 }\nvelocity = [0.0, -3.0]\n");
-        }
+        s.push_str(&common::stack_by_a_wall(sliding));
         let o = run("stack", &s, None);
         assert!(o.reports[0].converged, "{:?}", o.reports[0]);
         o.reports[0].velocity_scale

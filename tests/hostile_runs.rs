@@ -4,6 +4,8 @@
 //! outputs never land outside their directory nor sit beside stale files; nothing is silently
 //! accepted.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -260,18 +262,9 @@ fn messages_say_things_once_and_cite_nothing_missing() {
 #[test]
 fn a_run_warns_when_a_fast_grain_loosens_the_velocity_tests_bound() {
     let scene = |sliding: bool| {
-        let mut s = String::from(
-            "effects = [\"gravity\", \"friction\"]\n[time]\nstep = 1e-3\nsteps = 2\n[solver]\nname = \"nlgs\"\n\
-             tol = 1e-6\ncriterion = \"velocity\"\n[contact]\nfriction = 0.5\n[[material]]\nname = \"g\"\n\
-             density = 1.0\n[[wall]]\nsegment = [[-1.0, 0.0], [4.0, 0.0]]\n[[wall]]\nsegment = [[3.5, 0.0], [3.5, 9.0]]\n",
-        );
-        for k in 0..4 {
-            s.push_str(&format!("[[body]]\ndisk = {{ center = [0.0, {}], radius = 0.5 }}\n", 0.5 + k as f64));
-        }
-        if sliding {
-            s.push_str("[[body]]\ndisk = { center = [3.0, 5.0], radius = 0.5 }\nvelocity = [0.0, -3.0]\n");
-        }
-        s
+        let header = "effects = [\"gravity\", \"friction\"]\n[time]\nstep = 1e-3\nsteps = 2\n[solver]\n\
+                      name = \"nlgs\"\ntol = 1e-6\ncriterion = \"velocity\"\n[contact]\nfriction = 0.5\n";
+        header.to_string() + &common::stack_by_a_wall(sliding)
     };
     let (resting, _) = run_scene("velocity_scale_resting", &scene(false), &[]);
     assert!(resting.status.success(), "{}", stderr(&resting));

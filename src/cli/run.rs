@@ -347,8 +347,8 @@ fn output_steps(a: &RunArgs, scene: &scene::Scene, start: usize, last: usize) ->
 const LOOSE_VELOCITY_SCALE: f64 = 10.0;
 
 /// Closes the summary, says how the run went and writes the last files; `strict` makes missed
-/// tolerances an error. `scales`: the mean grain diameter and the velocity a step of gravity
-/// gives (0 without gravity).
+/// tolerances an error. With the mean grain diameter and the velocity a step of gravity gives
+/// (0 without gravity).
 fn finish_run(
     mut summary: RunSummary,
     output: RunOutput,
@@ -360,7 +360,7 @@ fn finish_run(
     summary.max_penetration_per_diameter = if diameter > 0.0 { summary.max_penetration / diameter } else { 0.0 };
     println!("{}", summary.line());
     let scale = summary.max_velocity_scale;
-    if summary.criterion == "velocity" && gravity_step > 0.0 && scale > LOOSE_VELOCITY_SCALE * gravity_step {
+    if summary.under_velocity_test() && gravity_step > 0.0 && scale > LOOSE_VELOCITY_SCALE * gravity_step {
         eprintln!(
             "warning: the velocity test held contacts to tol × up to {scale:.3} m/s, {:.0}× a step of gravity \
              (g h = {gravity_step:.2e} m/s): a few fast grains loosen every contact's bound, and a resting pile \

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use serde::Serialize;
 
-use crate::solvers::StopReason;
+use crate::solvers::{StopCriterion, StopReason};
 use crate::stepping::{Measures, Simulation, StepReport};
 
 /// One row of `steps.csv`.
@@ -197,6 +197,11 @@ impl RunSummary {
         (self.median_iterations, self.p95_iterations) = (rank(0.5), rank(0.95));
     }
 
+    /// Whether the velocity test judged the steps (their bound is `tol × max_velocity_scale`).
+    pub fn under_velocity_test(&self) -> bool {
+        self.criterion == StopCriterion::Velocity.name()
+    }
+
     /// One line for the end of a run.
     pub fn line(&self) -> String {
         let total: usize = self.iterations.iter().sum();
@@ -215,9 +220,9 @@ impl RunSummary {
             self.converged_steps,
             self.steps,
             self.max_error,
-            match self.criterion.as_str() {
-                "velocity" => format!("; each contact held to tol × up to {:.3} m/s", self.max_velocity_scale),
-                _ => String::new(),
+            match self.under_velocity_test() {
+                true => format!("; each contact held to tol × up to {:.3} m/s", self.max_velocity_scale),
+                false => String::new(),
             },
             self.mean_iterations,
             self.median_iterations,

@@ -72,3 +72,18 @@ pub fn assert_mixing_paid(what: &str, mixed: &moreau::solvers::SolveReport, plai
     assert!(factor * mixed.iterations <= plain, "{what}: {} mixed against {plain} plain", mixed.iterations);
     assert!(mixed.notes.iter().any(|n| n.starts_with(note)), "{what}: {:?}", mixed.notes);
 }
+
+/// A scene's material, walls and bodies: four unit disks stacked at rest on a floor beside a
+/// wall, and with `sliding` a fifth touching the wall and sliding down it at 3 m/s (the velocity
+/// test's scale: a step of gravity without it, 3 m/s with it).
+pub fn stack_by_a_wall(sliding: bool) -> String {
+    let mut s = String::from("[[material]]\nname = \"g\"\ndensity = 1.0\n");
+    s.push_str("[[wall]]\nsegment = [[-1.0, 0.0], [4.0, 0.0]]\n[[wall]]\nsegment = [[3.5, 0.0], [3.5, 9.0]]\n");
+    for k in 0..4 {
+        s.push_str(&format!("[[body]]\ndisk = {{ center = [0.0, {}], radius = 0.5 }}\n", 0.5 + k as f64));
+    }
+    if sliding {
+        s.push_str("[[body]]\ndisk = { center = [3.0, 5.0], radius = 0.5 }\nvelocity = [0.0, -3.0]\n");
+    }
+    s
+}
