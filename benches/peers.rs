@@ -14,8 +14,9 @@
 //! The settled state is kept in target/peers/settled_<scene>_<warmup>_<threads>.json and read
 //! back by the next run of the same scene file. Writes target/peers/peers.csv and peers.svg/.png (largest overlap against milliseconds per
 //! step, one curve per engine). rapier2d is built without its `parallel` feature, so it runs on
-//! one thread; moreau's rows say their thread count, and under the velocity test the bound each
-//! contact was held to (tol times the largest free velocity of the run's steps).
+//! one thread; moreau's rows say their thread count, and under a velocity test the bound each
+//! contact was held to: tol times the largest free velocity of the run's steps, or for the
+//! "× g h" rows (the step-velocity test) tol times one step of gravity.
 
 #[path = "peers/scene.rs"]
 mod scene;
@@ -140,19 +141,25 @@ fn main() {
     }
 
     // (setting, tolerance, fixed sweep count, Anderson depth instead of the scene's, focused
-    // sweeps, ordering instead of the scene's): the scene's solver, at two tolerances the other
-    // side of Anderson acceleration, focused sweeps without Anderson, and NLGS on a work list.
+    // sweeps, ordering instead of the scene's, criterion instead of the scene's): the scene's
+    // solver, at two tolerances the other side of Anderson acceleration, focused sweeps without
+    // Anderson, and NLGS on a work list, under the scene's criterion and under the step-velocity
+    // test (every contact within tol × g h, whatever the fastest grain does).
     let (other, named) = match first.settings.options.anderson {
         0 => (ANDERSON, format!("Anderson {ANDERSON}")),
         _ => (0, "plain NLGS".to_string()),
     };
-    let tolerances = [1e-2, 1e-3, 1e-4].map(|t| (format!("tol {t:.0e}"), Some(t), None, None, None, None));
-    let mixed = [1e-3, 1e-4].map(|t| (format!("tol {t:.0e}, {named}"), Some(t), None, Some(other), None, None));
+    let tolerances = [1e-2, 1e-3, 1e-4].map(|t| (format!("tol {t:.0e}"), Some(t), None, None, None, None, None));
+    let mixed = [1e-3, 1e-4].map(|t| (format!("tol {t:.0e}, {named}"), Some(t), None, Some(other), None, None, None));
     let focused =
-        [1e-3, 1e-4].map(|t| (format!("tol {t:.0e}, focus {FOCUS}"), Some(t), None, Some(0), Some(FOCUS), None));
-    let listed = [1e-2, 1e-3, 1e-4]
-        .map(|t| (format!("tol {t:.0e}, work list"), Some(t), None, Some(0), None, Some(Ordering::Worklist)));
-    let sweeps = [4usize, 8, 16].map(|k| (format!("{k} sweeps"), None, Some(k), None, None, None));
+        [1e-3, 1e-4].map(|t| (format!("tol {t:.0e}, focus {FOCUS}"), Some(t), None, Some(0), Some(FOCUS), None, None));
+    let list = Some(Ordering::Worklist);
+    let listed =
+        [1e-2, 1e-3, 1e-4].map(|t| (format!("tol {t:.0e}, work list"), Some(t), None, Some(0), None, list, None));
+    let held = [1e-2, 3e-3].map(|t| {
+        (format!("tol {t:.0e} × g h, work list"), Some(t), None, Some(0), None, list, Some(StopCriterion::StepVelocity))
+    });
+    let sweeps = [4usize, 8, 16].map(|k| (format!("{k} sweeps"), None, Some(k), None, None, None, None));
     // The CPU at each thread count; a GPU once, its detection on the last count, without the
     // Anderson rows (the GPU's sweeps have none).
     let runs: Vec<(DeviceChoice, usize)> = devices
@@ -165,12 +172,12 @@ fn main() {
     for &(device, t) in &runs {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().expect("a thread pool");
         let on_gpu = device != DeviceChoice::Cpu;
-        let rows_of = tolerances.iter().chain(&mixed).chain(&focused).chain(&listed).chain(&sweeps);
-        for (setting, tol, fixed, anderson, focus, ordering) in rows_of {
+        let rows_of = tolerances.iter().chain(&mixed).chain(&focused).chain(&listed).chain(&held).chain(&sweeps);
+        for (setting, tol, fixed, anderson, focus, ordering, criterion) in rows_of {
+            let criterion = criterion.unwrap_or(first.settings.options.criterion);
             // The GPU's sweeps have no Anderson rows of their own, nor focused sweeps; its work
-            // list (thresholded sweeps) needs the velocity test.
-            let gpu_list =
-                *ordering == Some(Ordering::Worklist) && first.settings.options.criterion == StopCriterion::Velocity;
+            // list (thresholded sweeps) needs a velocity test.
+            let gpu_list = *ordering == Some(Ordering::Worklist) && criterion.is_velocity_test();
             if (on_gpu && anderson.is_some() && !gpu_list) || !chosen(setting) {
                 continue;
             }
@@ -179,6 +186,7 @@ fn main() {
                 anderson: anderson.unwrap_or(s.settings.options.anderson),
                 focus: focus.unwrap_or(s.settings.options.focus),
                 ordering: ordering.unwrap_or(s.settings.options.ordering),
+                criterion,
                 ..s.settings.options.clone()
             };
             s.settings.options = match (tol, fixed) {
@@ -188,7 +196,8 @@ fn main() {
                 _ => unreachable!(),
             };
             let world = s.world.clone();
-            let velocity_test = s.settings.options.criterion == StopCriterion::Velocity;
+            let velocity_test = criterion == StopCriterion::Velocity;
+            let g_h = s.world.effects.gravity.map_or(0.0, |g| g.length()) * s.settings.h;
             let ((ms, mean, max, contacts, ke), unconverged, scale) = pool.install(|| {
                 let mut sim = Simulation::new(s.world, s.settings).expect("a valid scene");
                 sim.restore(&checkpoint).expect("the settled state");
@@ -228,6 +237,9 @@ fn main() {
             // velocity, which a few fast grains set (BENCHMARKS.md, "The velocity test's scale").
             if let (Some(tol), true) = (tol, velocity_test) {
                 notes.push(format!("each contact within {:.1e} m/s", tol * scale));
+            }
+            if let (Some(tol), StopCriterion::StepVelocity, true) = (tol, criterion, g_h > 0.0) {
+                notes.push(format!("each contact within {:.1e} m/s", tol * g_h));
             }
             let note = notes.join("; ");
             let engine = if on_gpu { "moreau gpu" } else { "moreau" };

@@ -49,8 +49,9 @@ typedef struct MoreauSolveOptions {
   size_t threads;
   // NLGS: Anderson acceleration over this many past sweeps (0: off; 5 is a good start).
   size_t anderson;
-  // What judges `tol`: `natural`, `velocity` (every contact, in velocity units: for
-  // simulation steps), `quad`, `maxm`, `qm16`. NULL: `natural` for a solve, unchanged for a
+  // What judges `tol`: `natural`, `velocity` (every contact, in velocity units against the
+  // largest free velocity: for simulation steps), `step-velocity` (the same against one step of
+  // the applied acceleration, g h), `quad`, `maxm`, `qm16`. NULL: `natural` for a solve, unchanged for a
   // simulation.
   const char *criterion;
   // NLGS's contact order: `forward`, `backward`, `symmetric`, `shuffled`, `colours`,

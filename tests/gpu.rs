@@ -221,6 +221,31 @@ fn gpu_solvers_solve_what_the_cpu_solves() {
     let _ = to_f32_pairs(&[0.0, 0.0]);
 }
 
+/// The step-velocity test on the GPU holds every contact to tol × g h, as on the CPU: the stack
+/// beside a grain sliding at 3 m/s (whose 3 m/s would be the velocity test's scale), colour
+/// sweeps and the work list's thresholded sweeps, each contact's residual checked in f64 from
+/// what the GPU returns.
+#[test]
+fn the_gpu_holds_every_contact_to_a_step_of_gravity_under_the_step_velocity_test() {
+    use moreau::solvers::{Ordering, StopCriterion};
+    let Some(ctx) = common::gpu_context() else { return };
+    let (p, g_h, tol) = (common::stack_beside_a_sliding_grain(), 9.81e-3, 1e-2);
+    for ordering in [Ordering::Colours, Ordering::Worklist] {
+        let opts = SolverOptions {
+            tol,
+            max_iter: 20_000,
+            criterion: StopCriterion::StepVelocity,
+            ordering,
+            anderson: 0,
+            ..Default::default()
+        };
+        let run = moreau::gpu::solve(&ctx, &p, SolverKind::Nlgs, &opts, None).unwrap();
+        assert!(run.converged, "{ordering:?}: {}", run.stop_reason);
+        let worst = common::worst_contact_residual(&p, &run.r, false) / g_h;
+        assert!(worst <= tol, "{ordering:?}: a contact at {worst:e} of g h");
+    }
+}
+
 /// The velocity test on the GPU is the CPU's: on a column of heavy grains the natural-map error
 /// is met long before the worst contact is; asked for the velocity test, the GPU stops only
 /// when the f64 velocity measure of what it returns is within tol, as the CPU does.

@@ -402,3 +402,31 @@ fn the_reported_velocity_scale_is_a_step_of_gravity_at_rest_and_follows_a_slidin
     let beside = stack(true);
     assert!((beside - 3.0).abs() < 2.0 * g_h, "{beside:e}");
 }
+
+/// `criterion = step-velocity` holds every contact to `tol` times one step of gravity (g h),
+/// whatever the fastest grain does; the velocity test holds every contact to `tol` times the
+/// fastest grain's free velocity. The stack beside a grain sliding down a wall at 3 m/s, its first
+/// problem solved from zero by NLGS (full sweeps and the work list) at tol 1e-2: every contact of
+/// the step-velocity answer is within tol × g h (checked here from `u = W r + q`), and the
+/// velocity test's answer leaves a resting contact far outside it (with the work list, one sweep
+/// and the stack unsupported: its residual is g h itself).
+#[test]
+fn the_step_velocity_test_holds_resting_contacts_to_a_step_of_gravity_beside_a_fast_grain() {
+    use moreau::solvers::{solve, Ordering, SolverKind, SolverOptions, StopCriterion};
+    let (p, g_h) = (common::stack_beside_a_sliding_grain(), 9.81e-3);
+    assert!((p.velocity_floor - g_h).abs() < 1e-12, "{}", p.velocity_floor);
+    let tol = 1e-2;
+    for ordering in [Ordering::Forward, Ordering::Worklist] {
+        let opts =
+            |criterion| SolverOptions { tol, max_iter: 20_000, criterion, ordering, anderson: 0, ..Default::default() };
+        let held = solve(&p, SolverKind::Nlgs, &opts(StopCriterion::StepVelocity), None);
+        assert!(held.converged, "{ordering:?}: {:?}", held.notes);
+        let worst = common::worst_contact_residual(&p, &held.r, false) / g_h;
+        assert!(worst <= tol, "{ordering:?}: a contact at {worst:e} of g h");
+        assert!((held.judged_error - worst).abs() <= 1e-9 * worst, "{ordering:?}: {:e}, {worst:e}", held.judged_error);
+        let largest = solve(&p, SolverKind::Nlgs, &opts(StopCriterion::Velocity), None);
+        assert!(largest.converged, "{ordering:?}");
+        let loose = common::worst_contact_residual(&p, &largest.r, true) / g_h;
+        assert!(loose > 5.0 * tol, "{ordering:?}: the velocity test left resting contacts at {loose:e} of g h");
+    }
+}

@@ -381,7 +381,7 @@ fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
     let _ = std::fs::remove_dir_all(&out);
 }
 
-/// The GPU path stops on the natural-map or velocity tests only: with an LMGC90 criterion
+/// The GPU path stops on the natural-map error or a velocity test only: with an LMGC90 criterion
 /// `--device auto` picks the CPU and says why, and `--device gpu` is refused by name before any
 /// adapter is sought.
 #[test]
@@ -400,7 +400,7 @@ fn a_criterion_the_gpu_lacks_keeps_the_run_on_the_cpu() {
     assert!(auto.status.success(), "{stderr}");
     assert!(
         stderr.contains(
-            "device: cpu (the GPU path stops on the natural-map or velocity error only, not on the qm16 criterion)"
+            "device: cpu (the GPU path stops on the natural-map error or a velocity test only, not on the qm16 criterion)"
         ),
         "{stderr}"
     );

@@ -43,8 +43,9 @@ __all__ = [
 
 SOLVERS = ("nlgs", "cpg", "pcpg", "latin", "jacobi", "apgd", "newton", "nlgs-newton", "interior-point")
 #: What judges convergence: the relative natural-map error, LMGC90's tests, or every contact's
-#: residual in velocity units against the largest free velocity (for simulation steps).
-CRITERIA = ("natural", "quad", "maxm", "qm16", "velocity")
+#: residual in velocity units against the largest free velocity or, for ``step-velocity``, one
+#: step of the applied acceleration (g h) (for simulation steps).
+CRITERIA = ("natural", "quad", "maxm", "qm16", "velocity", "step-velocity")
 #: NLGS's contact orders; ``colours`` and ``worklist`` need a matrix-free problem (a step's).
 ORDERINGS = ("forward", "backward", "symmetric", "shuffled", "colours", "worklist")
 

@@ -174,6 +174,16 @@ def test_a_scene_given_another_solver_from_python_steps_as_the_command_lines_ove
     assert sim.solver_settings() == after
 
 
+def test_every_criterion_python_names_is_one_the_library_takes():
+    # CRITERIA is written by hand: each name must set that criterion, and a name outside it is refused.
+    sim = moreau.Simulation.from_scene(PILE)
+    for criterion in moreau.CRITERIA:
+        sim.set_solver(criterion=criterion)
+        assert sim.solver_settings()["criterion"] == criterion
+    with pytest.raises(moreau.MoreauError, match="step-velocity"):
+        sim.set_solver(criterion="gravity")
+
+
 def test_a_solve_judged_by_the_velocity_test_from_python_matches_the_command_line(tmp_path):
     out = tmp_path / "solve.json"
     args = [cli(), "solve", str(SEED), "--solver", "nlgs", "--tol", "1e-6", "--criterion", "velocity", "--threads", "1"]

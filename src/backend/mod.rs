@@ -17,9 +17,7 @@ use thiserror::Error;
 use crate::gpu::traffic::Traffic;
 use crate::gpu::{GpuContext, GpuError};
 use crate::problem::ContactProblem;
-use crate::solvers::{
-    self, HistoryPoint, Ordering, SolvePart, SolveReport, SolverKind, SolverOptions, StopCriterion, StopReason,
-};
+use crate::solvers::{self, HistoryPoint, Ordering, SolvePart, SolveReport, SolverKind, SolverOptions, StopReason};
 
 /// The natural-map error f32 iterations reach on granular problems with margin (their floor
 /// was measured between 4e-7 and 2e-5): `auto` takes a GPU only for tolerances at or above it,
@@ -171,8 +169,8 @@ pub fn gpu_refusal(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
     if !crate::gpu::supports(kind) {
         return Some(GpuError::Unsupported(kind.name().into()).to_string());
     }
-    if !matches!(opts.criterion, StopCriterion::Natural | StopCriterion::Velocity) {
-        return Some(GpuError::Criterion(format!("{:?}", opts.criterion).to_lowercase()).to_string());
+    if !opts.criterion.judges_one_iterate() {
+        return Some(GpuError::Criterion(opts.criterion.name().into()).to_string());
     }
     if kind == SolverKind::Nlgs && opts.omega != 1.0 {
         return Some(format!("the GPU's NLGS has no relaxation (omega = {})", opts.omega));
@@ -183,8 +181,10 @@ pub fn gpu_refusal(kind: SolverKind, opts: &SolverOptions) -> Option<String> {
     }
     // The GPU keeps the list as thresholded sweeps, whose emptying is the velocity test; the
     // CPU's list lowers its threshold until the natural map is met, which the GPU does not.
-    if kind == SolverKind::Nlgs && opts.ordering == Ordering::Worklist && opts.criterion != StopCriterion::Velocity {
-        return Some("the GPU's work-list sweeps stop on the velocity test: set criterion = velocity".into());
+    if kind == SolverKind::Nlgs && opts.ordering == Ordering::Worklist && !opts.criterion.is_velocity_test() {
+        return Some(
+            "the GPU's work-list sweeps stop on a velocity test: set criterion = velocity or step-velocity".into(),
+        );
     }
     if opts.keep_iterates {
         return Some("the GPU path keeps no iterates".into());

@@ -365,7 +365,7 @@ fn finish_run(
             "warning: the velocity test held contacts to tol × up to {scale:.3} m/s, {:.0}× a step of gravity \
              (g h = {gravity_step:.2e} m/s): a few fast grains loosen every contact's bound, and a resting pile \
              can creep (velocity_scale in steps.csv; BENCHMARKS.md, \"The velocity test's scale follows the \
-             fastest grain\")",
+             fastest grain\"); criterion = step-velocity holds every contact to tol × g h instead",
             scale / gravity_step
         );
     }

@@ -27,7 +27,7 @@ pub enum GpuError {
     #[error("GPU: {0}")]
     Runtime(String),
     /// A stopping criterion the GPU path lacks.
-    #[error("the GPU path stops on the natural-map or velocity error only, not on the {0} criterion")]
+    #[error("the GPU path stops on the natural-map error or a velocity test only, not on the {0} criterion")]
     Criterion(String),
 }
 

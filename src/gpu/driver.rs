@@ -24,9 +24,9 @@ use super::operator::{GpuOperator, GpuProblem};
 use super::pool::{BindGroup, GpuBuffer};
 use super::reduce::{partials_len, Dot};
 use crate::problem::cone::project_cone;
-use crate::problem::residual::{error_of, free_velocity_bound, gap_term};
+use crate::problem::residual::{error_of, gap_term};
 use crate::problem::ContactProblem;
-use crate::solvers::stopping::{JudgedMeasure, StallWatch, StopReason};
+use crate::solvers::stopping::{velocity_scale, JudgedMeasure, StallWatch, StopReason};
 use crate::solvers::{GpuChecks, HistoryPoint, SolveReport, SolverKind, SolverOptions, StopCriterion};
 
 /// The f64 starting impulses, projected on the cone (warm start, else zero).
@@ -288,7 +288,7 @@ impl Checker {
         // reduced here, so |u| − |s| (at most |u − s|) stands in: the estimate can only grow.
         let q_norm = (0..p.q.len()).map(|k| (p.q[k] - gap_term(&p.gap_rate, k)).powi(2)).sum::<f64>().sqrt();
         let gap_norm = p.gap_rate.iter().map(|g| g * g).sum::<f64>().sqrt();
-        let velocity = (criterion == StopCriterion::Velocity).then(|| {
+        let velocity = criterion.is_velocity_test().then(|| {
             let c = storage(ctx, "W_aa,nn", &p.w.diag_blocks().iter().map(|d| d[0] as f32).collect::<Vec<_>>());
             let groups = velocity_groups(nc);
             let partials = storage(ctx, "velocity partials", &vec![0.0f32; groups]);
@@ -297,7 +297,7 @@ impl Checker {
                 &kernels.velocity_residual,
                 &[("r", r_buf), ("u", &u), ("mu", &gp.mu), ("c", &c), ("partials", &partials)],
             );
-            VelocityEstimate { residual, partials, groups, scale: free_velocity_bound(&p.q, &p.gap_rate), _c: c }
+            VelocityEstimate { residual, partials, groups, scale: velocity_scale(p, criterion), _c: c }
         });
         let _buffers = vec![u, f, partials];
         let snapshot = storage(ctx, "r at check", &vec![[0.0f32; 2]; nc]);

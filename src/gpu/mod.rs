@@ -33,8 +33,8 @@ pub fn solve(
     opts: &SolverOptions,
     r0: Option<&[f64]>,
 ) -> Result<SolveReport, GpuError> {
-    if !matches!(opts.criterion, crate::solvers::StopCriterion::Natural | crate::solvers::StopCriterion::Velocity) {
-        return Err(GpuError::Criterion(format!("{:?}", opts.criterion).to_lowercase()));
+    if !opts.criterion.judges_one_iterate() {
+        return Err(GpuError::Criterion(opts.criterion.name().into()));
     }
     match kind {
         SolverKind::Jacobi => jacobi::solve(ctx, problem, opts, r0),

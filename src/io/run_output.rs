@@ -220,9 +220,12 @@ impl RunSummary {
             self.converged_steps,
             self.steps,
             self.max_error,
-            match self.under_velocity_test() {
-                true => format!("; each contact held to tol × up to {:.3} m/s", self.max_velocity_scale),
-                false => String::new(),
+            match self.criterion.as_str() {
+                _ if self.under_velocity_test() => format!("; each contact held to tol × up to {:.3} m/s", self.max_velocity_scale),
+                c if c == StopCriterion::StepVelocity.name() => {
+                    "; each contact held to tol × one step of the applied acceleration (g h)".into()
+                }
+                _ => String::new(),
             },
             self.mean_iterations,
             self.median_iterations,

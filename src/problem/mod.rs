@@ -55,6 +55,9 @@ pub enum ProblemError {
     /// Gap rates that do not match the contacts.
     #[error("gap rates: {0}")]
     GapRates(String),
+    /// A velocity floor that is negative or not finite.
+    #[error("velocity floor {0} must be finite and >= 0")]
+    VelocityFloor(f64),
     /// The operator is not a valid `W` (see [`Delassus::validate`]).
     #[error("W: {0}")]
     Operator(String),
@@ -77,6 +80,10 @@ pub struct ContactProblem {
     /// nothing, so the error measures leave it out of their scale: a wide alert must not loosen
     /// `tol`.
     pub gap_rate: Vec<f64>,
+    /// One step of the largest applied acceleration, `h max|a|` (m/s; gravity's `g h` in a
+    /// pile): the scale of `criterion = step-velocity`. 0 for a problem read from a file, or a
+    /// step with no applied force, which that test then judges as the velocity test does.
+    pub velocity_floor: f64,
 }
 
 impl ContactProblem {
@@ -118,7 +125,7 @@ impl ContactProblem {
             return Err(ProblemError::BadMu(i, mu[i]));
         }
         w.validate().map_err(ProblemError::Operator)?;
-        Ok(Self { w, q, mu, rolling, gap_rate: Vec::new() })
+        Ok(Self { w, q, mu, rolling, gap_rate: Vec::new(), velocity_floor: 0.0 })
     }
 
     /// The problem with each contact's gap term `g̃/h` (one per contact, finite and ≥ 0) named,
@@ -132,6 +139,15 @@ impl ContactProblem {
             return Err(ProblemError::GapRates(format!("contact {a}: {} must be finite and >= 0", gap_rate[a])));
         }
         self.gap_rate = gap_rate;
+        Ok(self)
+    }
+
+    /// The problem with its step's [`Self::velocity_floor`] (finite and ≥ 0).
+    pub fn with_velocity_floor(mut self, floor: f64) -> Result<Self, ProblemError> {
+        if !(floor.is_finite() && floor >= 0.0) {
+            return Err(ProblemError::VelocityFloor(floor));
+        }
+        self.velocity_floor = floor;
         Ok(self)
     }
 

@@ -114,6 +114,13 @@ pub fn velocity_error_rolling(
     r: &[f64],
     u: &[f64],
 ) -> f64 {
+    velocity_error_scaled(diag, mu, rolling, free_velocity_bound(q, gap_rate), r, u)
+}
+
+/// The largest per-contact residual in velocity units over `scale` (the raw residual when
+/// `scale` vanishes): [`velocity_error_rolling`] with the scale given, as the step-velocity test
+/// gives one step of the applied acceleration.
+pub fn velocity_error_scaled(diag: &[Mat2], mu: &[f64], rolling: &[f64], scale: f64, r: &[f64], u: &[f64]) -> f64 {
     let nc = mu.len();
     let residual = |a: usize| {
         let roll = rolling.get(a).map(|&eta| (eta, r[2 * nc + a], u[2 * nc + a]));
@@ -125,7 +132,6 @@ pub fn velocity_error_rolling(
     } else {
         (0..nc).map(residual).fold(0.0, f64::max)
     };
-    let scale = free_velocity_bound(q, gap_rate);
     if scale > f64::EPSILON {
         worst / scale
     } else {

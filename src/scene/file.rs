@@ -813,13 +813,8 @@ impl Builder<'_> {
             options.anderson = s.anderson.unwrap_or(0);
             options.focus = s.focus.unwrap_or(0);
             if let Some(c) = &s.criterion {
-                options.criterion = StopCriterion::from_name(c).or_else(|_| {
-                    self.cx.err(
-                        solver_span.clone(),
-                        "solver.criterion",
-                        format!("unknown criterion {c:?} (natural, velocity, quad, maxm, qm16)"),
-                    )
-                })?;
+                options.criterion = StopCriterion::from_name(c)
+                    .or_else(|why| self.cx.err(solver_span.clone(), "solver.criterion", why))?;
             }
             if let Some(o) = &s.ordering {
                 options.ordering = Ordering::from_name(o).or_else(|_| {

@@ -70,7 +70,7 @@ impl LmgcMeasures {
     pub fn satisfied(&self, criterion: StopCriterion) -> bool {
         let quad = self.mean_dvor.abs() < 1.0 && self.quad_dv < 1.0 && self.quad_dvr < 1.0;
         match criterion {
-            StopCriterion::Natural | StopCriterion::Velocity => false,
+            StopCriterion::Natural | StopCriterion::Velocity | StopCriterion::StepVelocity => false,
             StopCriterion::Quad => quad,
             StopCriterion::Maxm => self.mean_dvor.abs() < 1.0 && self.maxm_dv < 1.0 && self.maxm_dvr < 1.0,
             StopCriterion::Qm16 => quad && self.maxm_dv < 16.666 && self.maxm_dvr < 16.666,

@@ -182,17 +182,36 @@ pub enum StopCriterion {
     /// (and overlap) while the rest converge.
     // (computed by `problem::residual::velocity_error`)
     Velocity,
+    /// Every contact's residual in velocity units is at most `tol` times one step of the largest
+    /// applied acceleration (`g h` under gravity, the problem's `velocity_floor`): a bound that no
+    /// fast grain loosens. Without one (a problem read from a file, no applied force) it is the
+    /// velocity test.
+    #[serde(rename = "step-velocity")]
+    StepVelocity,
 }
 
 impl StopCriterion {
     /// Every criterion.
-    pub const ALL: [StopCriterion; 5] = [
+    pub const ALL: [StopCriterion; 6] = [
         StopCriterion::Natural,
         StopCriterion::Quad,
         StopCriterion::Maxm,
         StopCriterion::Qm16,
         StopCriterion::Velocity,
+        StopCriterion::StepVelocity,
     ];
+
+    /// Whether it judges the largest contact residual in velocity units (`velocity`,
+    /// `step-velocity`), which needs `W`'s diagonal blocks and which a work list can empty.
+    pub fn is_velocity_test(self) -> bool {
+        matches!(self, StopCriterion::Velocity | StopCriterion::StepVelocity)
+    }
+
+    /// Whether it judges a measure of one iterate (the natural map or a velocity test), not the
+    /// change between two as LMGC90's tests do.
+    pub fn judges_one_iterate(self) -> bool {
+        self == StopCriterion::Natural || self.is_velocity_test()
+    }
 
     /// The name the command line and scene files use.
     pub fn name(self) -> &'static str {
@@ -202,6 +221,7 @@ impl StopCriterion {
             StopCriterion::Maxm => "maxm",
             StopCriterion::Qm16 => "qm16",
             StopCriterion::Velocity => "velocity",
+            StopCriterion::StepVelocity => "step-velocity",
         }
     }
 
@@ -458,7 +478,7 @@ pub fn refusal(problem: &ContactProblem, kind: SolverKind, opts: &SolverOptions)
 pub fn rolling_refusal(rolling: bool, kind: SolverKind, criterion: StopCriterion) -> Option<String> {
     if rolling && kind != SolverKind::Nlgs {
         Some(format!("rolling resistance is solved by nlgs only, not {}", kind.name()))
-    } else if rolling && !matches!(criterion, StopCriterion::Natural | StopCriterion::Velocity) {
+    } else if rolling && !criterion.judges_one_iterate() {
         Some(format!("rolling resistance is judged by the natural or velocity criterion, not {}", criterion.name()))
     } else {
         None

@@ -11,7 +11,7 @@
 
 use super::lmgc_criteria::LmgcMeasures;
 use super::stopping::{CheckCadence, JudgedMeasure, StopReason};
-use super::{HistoryPoint, SolveReport, SolverKind, SolverOptions, StopCriterion};
+use super::{HistoryPoint, SolveReport, SolverKind, SolverOptions};
 use crate::parallel::chunked_sum;
 use crate::problem::cone::project_box;
 use crate::problem::residual::problem_error;
@@ -52,7 +52,7 @@ pub struct Monitor<'a> {
 impl<'a> Monitor<'a> {
     /// Starts watching a solve of `problem` from `r0`.
     pub fn new(problem: &'a ContactProblem, opts: &'a SolverOptions, kind: SolverKind, r0: &[f64]) -> Self {
-        let lmgc = !matches!(opts.criterion, StopCriterion::Natural | StopCriterion::Velocity);
+        let lmgc = !opts.criterion.judges_one_iterate();
         let diag = lmgc.then(|| problem.w.diag_blocks());
         Self {
             problem,
@@ -166,7 +166,7 @@ impl<'a> Monitor<'a> {
         let cost_due = self.cadence.after_iteration(work);
         let history_due = self.opts.history_every > 0 && self.iteration.is_multiple_of(self.opts.history_every);
         match self.opts.criterion {
-            StopCriterion::Natural | StopCriterion::Velocity => {
+            criterion if criterion.judges_one_iterate() => {
                 let needed = u.is_some() || check || light <= self.tol_light || last || cost_due;
                 if needed || history_due {
                     let (err, judged) = self.full_error(r, u, !needed);
@@ -244,7 +244,7 @@ impl<'a> Monitor<'a> {
     /// that did not converge returns its best checked iterate when that is better than its last.
     pub fn finish(mut self, mut r: Vec<f64>) -> SolveReport {
         let seconds = self.elapsed();
-        let lmgc = !matches!(self.opts.criterion, StopCriterion::Natural | StopCriterion::Velocity);
+        let lmgc = !self.opts.criterion.judges_one_iterate();
         // The last check's product, when it was of the iterate returned (the same bits).
         let (mut u, mut error, mut judged) = match self.scratch_check.take() {
             Some((iteration, error, judged)) if iteration == self.iteration && r == self.r_prev => {

@@ -68,6 +68,7 @@ pub fn colour_ordered(p: &ContactProblem, op: &MatrixFree) -> (Colouring, Contac
         mu: order.iter().map(|&a| p.mu[a]).collect(),
         rolling: order.iter().filter_map(|&a| p.rolling.get(a).copied()).collect(),
         gap_rate: order.iter().filter_map(|&a| p.gap_rate.get(a).copied()).collect(),
+        velocity_floor: p.velocity_floor,
     };
     (colouring, renumbered)
 }

@@ -6,30 +6,42 @@ use serde::Serialize;
 use std::fmt;
 
 use super::StopCriterion;
-use crate::problem::residual::velocity_error_rolling;
+use crate::problem::residual::{free_velocity_bound, velocity_error_scaled};
 use crate::problem::{ContactProblem, Mat2};
 
-/// The f64 measure a criterion compares with `tol`: the natural-map error, or under
-/// `criterion = velocity` the worst contact's residual in velocity units (which needs the
-/// diagonal blocks of W, taken once). The LMGC90 tests judge changes between iterates, not a
-/// measure of one, and read the natural map here.
+/// The f64 measure a criterion compares with `tol`: the natural-map error, or under a velocity
+/// test (`velocity`, `step-velocity`) the worst contact's residual in velocity units over the
+/// test's scale (which needs the diagonal blocks of W, taken once). The LMGC90 tests judge changes
+/// between iterates, not a measure of one, and read the natural map here.
 #[derive(Clone, Debug)]
 pub struct JudgedMeasure {
-    diag: Option<Vec<Mat2>>,
+    velocity_test: Option<(Vec<Mat2>, f64)>,
 }
 
 impl JudgedMeasure {
     /// The measure `criterion` judges `problem` by.
     pub fn new(problem: &ContactProblem, criterion: StopCriterion) -> Self {
-        Self { diag: (criterion == StopCriterion::Velocity).then(|| problem.w.diag_blocks()) }
+        let velocity_test =
+            criterion.is_velocity_test().then(|| (problem.w.diag_blocks(), velocity_scale(problem, criterion)));
+        Self { velocity_test }
     }
 
     /// Of `r` with `u = W r + q`, whose natural-map error is `natural`.
     pub fn of(&self, p: &ContactProblem, r: &[f64], u: &[f64], natural: f64) -> f64 {
-        match &self.diag {
-            Some(d) => velocity_error_rolling(d, &p.q, &p.mu, &p.rolling, &p.gap_rate, r, u),
+        match &self.velocity_test {
+            Some((d, scale)) => velocity_error_scaled(d, &p.mu, &p.rolling, *scale, r, u),
             None => natural,
         }
+    }
+}
+
+/// What a velocity test divides the worst contact residual by: one step of the applied
+/// acceleration under `step-velocity` when the problem has one, else the largest free velocity
+/// (gap terms out), which one fast grain sets for the whole pile.
+pub fn velocity_scale(p: &ContactProblem, criterion: StopCriterion) -> f64 {
+    match criterion == StopCriterion::StepVelocity && p.velocity_floor > 0.0 {
+        true => p.velocity_floor,
+        false => free_velocity_bound(&p.q, &p.gap_rate),
     }
 }
 
@@ -145,5 +157,27 @@ mod tests {
         assert_eq!(s.stalled(2000), Some(1e-3));
         s.record(2000, 0.995e-3);
         assert!(s.stalled(2000).is_some(), "a gain below 1 % is no progress");
+    }
+
+    /// A closed contact whose free velocity is 2 m/s and a resting one off by 1e-3 m/s: the
+    /// velocity test reads 1e-3 / 2, the step-velocity test 1e-3 / g h once the step names its
+    /// floor, and the velocity test's reading without one (a problem from a file).
+    #[test]
+    fn the_step_velocity_test_divides_by_the_floor_when_the_problem_has_one() {
+        use crate::problem::{BlockSparse, Delassus};
+        let block = [1.0, 0.0, 0.0, 1.0];
+        let w = Delassus::Sparse(BlockSparse::from_block_triplets(2, vec![(0, 0, block), (1, 1, block)]));
+        let p = ContactProblem::new(w, vec![-1e-3, 0.0, -2.0, 0.0], vec![0.5, 0.5]).unwrap();
+        // Contact 1 is solved (r_n = 2, u = 0); contact 0 closes at 1e-3 with no impulse.
+        let r = [0.0, 0.0, 2.0, 0.0];
+        let u = p.velocity(&r);
+        let judged = |p: &ContactProblem, c| JudgedMeasure::new(p, c).of(p, &r, &u, f64::NAN);
+        assert!((judged(&p, StopCriterion::Velocity) - 1e-3 / 2.0).abs() < 1e-15);
+        assert_eq!(judged(&p, StopCriterion::StepVelocity), judged(&p, StopCriterion::Velocity));
+        let stepped = p.clone().with_velocity_floor(9.81e-3).unwrap();
+        assert!((judged(&stepped, StopCriterion::StepVelocity) - 1e-3 / 9.81e-3).abs() < 1e-15);
+        assert_eq!(judged(&stepped, StopCriterion::Velocity), judged(&p, StopCriterion::Velocity));
+        assert!(judged(&stepped, StopCriterion::Natural).is_nan(), "the natural map is the caller's");
+        assert!(p.with_velocity_floor(-1.0).is_err());
     }
 }

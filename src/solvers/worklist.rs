@@ -33,10 +33,11 @@ use rayon::prelude::*;
 
 use super::monitor::Monitor;
 use super::nlgs::{block_colours, local_solve, threaded_sweep, update_rolling, update_shared, Sweep};
-use super::{SolveReport, SolverKind, SolverOptions};
+use super::stopping::velocity_scale;
+use super::{SolveReport, SolverKind, SolverOptions, StopCriterion};
 use crate::parallel::CHUNK;
 use crate::problem::matrix_free::{ContactNeighbours, ContactRows, Levers, SharedSlice, Velocities};
-use crate::problem::residual::{contact_velocity_residual_squared, free_velocity_bound};
+use crate::problem::residual::contact_velocity_residual_squared;
 use crate::problem::{ContactProblem, MatrixFree};
 
 /// A contact is updated while its residual exceeds this share of the tolerance (times the
@@ -45,10 +46,12 @@ use crate::problem::{ContactProblem, MatrixFree};
 pub const THRESHOLD_SHARE: f64 = 0.9;
 
 /// The residual in velocity units above which a contact of `p` is updated, for `tol`:
-/// [`THRESHOLD_SHARE`] of the velocity test's bound (`tol` times the largest free velocity).
-/// The GPU's work-list sweeps take the same.
-pub fn threshold(p: &ContactProblem, tol: f64) -> f64 {
-    let scale = free_velocity_bound(&p.q, &p.gap_rate);
+/// [`THRESHOLD_SHARE`] of the velocity test's bound (`tol` times its scale: the largest free
+/// velocity, or one step of the applied acceleration under `criterion = step-velocity`). The
+/// natural-map test's list starts from the velocity test's. The GPU's work-list sweeps take the
+/// same.
+pub fn threshold(p: &ContactProblem, tol: f64, criterion: StopCriterion) -> f64 {
+    let scale = velocity_scale(p, criterion);
     THRESHOLD_SHARE * tol * if scale > f64::EPSILON { scale } else { 1.0 }
 }
 
@@ -114,7 +117,7 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
     let nc = p.n_contacts();
     let diag = p.w.diag_blocks();
     let mut state = p.w.sweep_state(&r);
-    let mut threshold = threshold(p, opts.tol);
+    let mut threshold = threshold(p, opts.tol, opts.criterion);
     let rolling = p.has_rolling();
     let record = |a: usize| {
         let (rows, levers) = op.rows_of(a);

@@ -154,6 +154,14 @@ fn free_velocities(world: &World, forces: &[(DVec2, f64)], dofs: Dofs, h: f64) -
     (v_begin, v_free)
 }
 
+/// The largest velocity change the step's applied forces give a body, `h max|a|` (g h under
+/// gravity): `criterion = step-velocity` holds every contact to `tol` times it.
+fn applied_velocity_step(v_begin: &[f64], v_free: &[f64], dofs: Dofs) -> f64 {
+    let s = dofs.per_body();
+    let change = |k: usize| (v_free[s * k] - v_begin[s * k]).hypot(v_free[s * k + 1] - v_begin[s * k + 1]);
+    (0..v_begin.len() / s).map(change).fold(0.0, f64::max)
+}
+
 /// The step's contact problem, in cohesion-shifted impulses r' = r + c e_n (`shift`, empty
 /// without cohesion), and the warm start `r0` moved the same way.
 fn local_problem(
@@ -338,7 +346,9 @@ pub(super) fn assemble(sim: &mut Simulation, step: usize) -> Result<Assembled, S
     }
     let mut r0 = recalled.impulses;
     let velocities = (assembled.v_begin.as_slice(), assembled.v_free.as_slice());
+    let floor = applied_velocity_step(velocities.0, velocities.1, dofs);
     let (problem, shift) = local_problem(world, op, &assembled.detected, velocities, (h, theta), &mut r0)
+        .and_then(|(p, shift)| Ok((p.with_velocity_floor(floor).map_err(|e| e.to_string())?, shift)))
         .map_err(|message| StepError::Problem { step, message })?;
     (assembled.problem, assembled.r0, assembled.shift) = (Some(problem), r0, shift);
     assembled.warm_started = recalled.matched;

@@ -87,3 +87,27 @@ pub fn stack_by_a_wall(sliding: bool) -> String {
     }
     s
 }
+
+/// The first problem of [`stack_by_a_wall`] with its grain sliding at 3 m/s.
+pub fn stack_beside_a_sliding_grain() -> moreau::problem::ContactProblem {
+    let mut s = String::from("effects = [\"gravity\", \"friction\"]\n[time]\nstep = 1e-3\nsteps = 1\n");
+    s.push_str("[solver]\nname = \"nlgs\"\ntol = 1e-8\n[contact]\nfriction = 0.5\n");
+    s.push_str(&stack_by_a_wall(true));
+    let scene = moreau::scene::parse(&s, std::path::Path::new("stack")).unwrap();
+    let mut sim = moreau::stepping::Simulation::new(scene.world, scene.settings).unwrap();
+    sim.next_problem().unwrap().expect("contacts").0
+}
+
+/// The largest contact residual in velocity units of `r` (m/s), over the resting contacts only
+/// (free velocity below 0.1 m/s) when `resting_only`.
+pub fn worst_contact_residual(p: &moreau::problem::ContactProblem, r: &[f64], resting_only: bool) -> f64 {
+    use moreau::problem::residual::{contact_velocity_residual, gap_term};
+    let (u, diag) = (p.velocity(r), p.w.diag_blocks());
+    let free = |a: usize| (0..2).map(|i| (p.q[2 * a + i] - gap_term(&p.gap_rate, 2 * a + i)).abs()).fold(0.0, f64::max);
+    (0..p.n_contacts())
+        .filter(|&a| !resting_only || free(a) < 0.1)
+        .map(|a| {
+            contact_velocity_residual(diag[a][0], [r[2 * a], r[2 * a + 1]], [u[2 * a], u[2 * a + 1]], p.mu[a], None)
+        })
+        .fold(0.0, f64::max)
+}
