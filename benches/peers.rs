@@ -197,7 +197,7 @@ fn main() {
             };
             let world = s.world.clone();
             let velocity_test = criterion == StopCriterion::Velocity;
-            let g_h = s.world.effects.gravity.map_or(0.0, |g| g.length()) * s.settings.h;
+            let g_h = s.world.effects.gravity_step(s.settings.h);
             let ((ms, mean, max, contacts, ke), unconverged, scale) = pool.install(|| {
                 let mut sim = Simulation::new(s.world, s.settings).expect("a valid scene");
                 sim.restore(&checkpoint).expect("the settled state");

@@ -261,11 +261,7 @@ fn messages_say_things_once_and_cite_nothing_missing() {
 /// grain sliding down a wall at 3 m/s beside a resting stack sets the scale of every contact.
 #[test]
 fn a_run_warns_when_a_fast_grain_loosens_the_velocity_tests_bound() {
-    let scene = |sliding: bool| {
-        let header = "effects = [\"gravity\", \"friction\"]\n[time]\nstep = 1e-3\nsteps = 2\n[solver]\n\
-                      name = \"nlgs\"\ntol = 1e-6\ncriterion = \"velocity\"\n[contact]\nfriction = 0.5\n";
-        header.to_string() + &common::stack_by_a_wall(sliding)
-    };
+    let scene = |sliding: bool| common::stack_scene(sliding, 2, "tol = 1e-6\ncriterion = \"velocity\"\n");
     let (resting, _) = run_scene("velocity_scale_resting", &scene(false), &[]);
     assert!(resting.status.success(), "{}", stderr(&resting));
     assert!(!stderr(&resting).contains("a step of gravity"), "{}", stderr(&resting));

@@ -141,7 +141,7 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         ..RunSummary::default()
     };
     let diameter = scene.world.mean_diameter();
-    let gravity_step = scene.world.effects.gravity.map_or(0.0, |g| g.length() * scene.settings.h);
+    let gravity_step = scene.world.effects.gravity_step(scene.settings.h);
     eprintln!(
         "{}: {} bodies, {} walls, effects [{}], h = {:e}, {} steps, solver {} tol {:.0e}",
         scene.name,

@@ -229,8 +229,10 @@ fn local_problem(
             r0[k] += shift[k];
         }
     }
+    let floor = applied_velocity_step(v_begin, v_free, op.dofs());
     let problem = ContactProblem::with_rolling(Delassus::MatrixFree(op), q, mu, rolling)
         .and_then(|p| p.with_gap_rates(gap_rate))
+        .and_then(|p| p.with_velocity_floor(floor))
         .map_err(|e| e.to_string())?;
     Ok((problem, shift))
 }
@@ -346,9 +348,7 @@ pub(super) fn assemble(sim: &mut Simulation, step: usize) -> Result<Assembled, S
     }
     let mut r0 = recalled.impulses;
     let velocities = (assembled.v_begin.as_slice(), assembled.v_free.as_slice());
-    let floor = applied_velocity_step(velocities.0, velocities.1, dofs);
     let (problem, shift) = local_problem(world, op, &assembled.detected, velocities, (h, theta), &mut r0)
-        .and_then(|(p, shift)| Ok((p.with_velocity_floor(floor).map_err(|e| e.to_string())?, shift)))
         .map_err(|message| StepError::Problem { step, message })?;
     (assembled.problem, assembled.r0, assembled.shift) = (Some(problem), r0, shift);
     assembled.warm_started = recalled.matched;

@@ -58,6 +58,11 @@ pub struct Effects {
 }
 
 impl Effects {
+    /// The velocity gravity gives over a step of `h`, `g h` (0 without gravity).
+    pub fn gravity_step(&self, h: f64) -> f64 {
+        self.gravity.map_or(0.0, |g| g.length() * h)
+    }
+
     /// The names of the effects that are on, for reports.
     pub fn names(&self) -> Vec<&'static str> {
         let mut v = Vec::new();

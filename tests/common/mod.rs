@@ -88,11 +88,16 @@ pub fn stack_by_a_wall(sliding: bool) -> String {
     s
 }
 
+/// [`stack_by_a_wall`] as a whole scene: gravity, friction μ 0.5, h = 1e-3, `steps` steps of NLGS
+/// with the `[solver]` lines `solver` (its tolerance, criterion).
+pub fn stack_scene(sliding: bool, steps: usize, solver: &str) -> String {
+    let header = format!("effects = [\"gravity\", \"friction\"]\n[time]\nstep = 1e-3\nsteps = {steps}\n");
+    header + "[solver]\nname = \"nlgs\"\n" + solver + "[contact]\nfriction = 0.5\n" + &stack_by_a_wall(sliding)
+}
+
 /// The first problem of [`stack_by_a_wall`] with its grain sliding at 3 m/s.
 pub fn stack_beside_a_sliding_grain() -> moreau::problem::ContactProblem {
-    let mut s = String::from("effects = [\"gravity\", \"friction\"]\n[time]\nstep = 1e-3\nsteps = 1\n");
-    s.push_str("[solver]\nname = \"nlgs\"\ntol = 1e-8\n[contact]\nfriction = 0.5\n");
-    s.push_str(&stack_by_a_wall(true));
+    let s = stack_scene(true, 1, "tol = 1e-8\n");
     let scene = moreau::scene::parse(&s, std::path::Path::new("stack")).unwrap();
     let mut sim = moreau::stepping::Simulation::new(scene.world, scene.settings).unwrap();
     sim.next_problem().unwrap().expect("contacts").0
