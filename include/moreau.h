@@ -87,8 +87,9 @@ typedef struct MoreauStepReport {
   double seconds;
   // Of `iterations`, those run on a GPU (the rest of a GPU step: its f64 finish on the CPU).
   size_t gpu_iterations;
-  // The largest free velocity of the step's contacts (velocity units): under the velocity
-  // test every contact's residual was held to `tol` times it.
+  // The scale of the velocity tests (velocity units): every contact's residual was held to
+  // `tol` times it. Under `step-velocity` one step of the applied acceleration (g h), else the
+  // largest free velocity of the step's contacts.
   double velocity_scale;
 } MoreauStepReport;
 

@@ -386,7 +386,8 @@ fn a_semicircular_arch_of_voussoirs_stands() {
 /// contacts: a resting stack's is what a step of gravity gives its bottom contact (grain–grain
 /// contacts see none: both grains fall alike), and one grain sliding down a wall at 3 m/s beside
 /// it raises it 300-fold, loosening the bound every contact of the stack is held to as much
-/// (BENCHMARKS.md, "The velocity test's scale follows the fastest grain").
+/// (BENCHMARKS.md, "The velocity test's scale follows the fastest grain"). Under step-velocity the
+/// reported scale stays g h beside the sliding grain.
 #[test]
 fn the_reported_velocity_scale_is_a_step_of_gravity_at_rest_and_follows_a_sliding_grain() {
     let stack = |sliding: bool| {
@@ -401,6 +402,12 @@ fn the_reported_velocity_scale_is_a_step_of_gravity_at_rest_and_follows_a_slidin
     assert!((resting - g_h).abs() < 1e-9, "{resting:e}");
     let beside = stack(true);
     assert!((beside - 3.0).abs() < 2.0 * g_h, "{beside:e}");
+    // Under step-velocity the reported scale is the one that test divides by: g h, beside the
+    // sliding grain too.
+    let s = common::stack_scene(true, 1, "tol = 1e-2\ncriterion = \"step-velocity\"\n");
+    let o = run("stack", &s, None);
+    assert!(o.reports[0].converged, "{:?}", o.reports[0]);
+    assert!((o.reports[0].velocity_scale - g_h).abs() < 1e-9, "{:e}", o.reports[0].velocity_scale);
 }
 
 /// `criterion = step-velocity` holds every contact to `tol` times one step of gravity (g h),

@@ -107,8 +107,9 @@ pub struct MoreauStepReport {
     pub seconds: f64,
     /// Of `iterations`, those run on a GPU (the rest of a GPU step: its f64 finish on the CPU).
     pub gpu_iterations: usize,
-    /// The largest free velocity of the step's contacts (velocity units): under the velocity
-    /// test every contact's residual was held to `tol` times it.
+    /// The scale of the velocity tests (velocity units): every contact's residual was held to
+    /// `tol` times it. Under `step-velocity` one step of the applied acceleration (g h), else the
+    /// largest free velocity of the step's contacts.
     pub velocity_scale: f64,
 }
 

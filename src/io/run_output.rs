@@ -114,7 +114,7 @@ pub struct RunSummary {
     pub unconverged_steps: usize,
     /// The largest error of any step.
     pub max_error: f64,
-    /// The largest of the steps' `velocity_scale` (m/s): under the velocity test, the loosest
+    /// The largest of the steps' `velocity_scale` (m/s): under either velocity test, the loosest
     /// bound a contact was held to is `tol` times it.
     pub max_velocity_scale: f64,
     /// Iterations (NLGS: sweeps) per step: mean, median, 95th percentile, largest.
@@ -222,9 +222,10 @@ impl RunSummary {
             self.max_error,
             match self.criterion.as_str() {
                 _ if self.under_velocity_test() => format!("; each contact held to tol × up to {:.3} m/s", self.max_velocity_scale),
-                c if c == StopCriterion::StepVelocity.name() => {
-                    "; each contact held to tol × one step of the applied acceleration (g h)".into()
-                }
+                c if c == StopCriterion::StepVelocity.name() => format!(
+                    "; each contact held to tol × {:.3e} m/s, one step of the applied acceleration (g h)",
+                    self.max_velocity_scale
+                ),
                 _ => String::new(),
             },
             self.mean_iterations,

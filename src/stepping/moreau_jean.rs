@@ -25,7 +25,6 @@ use crate::detection::{Antagonist, Configuration, DetectedContact, Detector};
 use crate::problem::colouring::Colouring;
 use crate::problem::cone::status_of;
 use crate::problem::matrix_free::Dofs;
-use crate::problem::residual::free_velocity_bound;
 use crate::problem::{Body, Contact, ContactProblem, Delassus, MatrixFree};
 use crate::solvers::StopReason;
 use crate::world::{Wall, World};
@@ -422,7 +421,7 @@ fn apply(
     let mut impulses = Vec::new();
     if let (Some(local), Some((solved, seconds))) = (&problem, solved) {
         report.solve_seconds = seconds;
-        report.velocity_scale = free_velocity_bound(&local.q, &local.gap_rate);
+        report.velocity_scale = crate::solvers::stopping::velocity_scale(local, sim.settings.options.criterion);
         report.iterations = solved.iterations;
         report.gpu_iterations = solved.gpu_iterations();
         report.error = solved.judged_error;

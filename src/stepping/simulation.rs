@@ -146,10 +146,11 @@ pub struct StepReport {
     /// How a GPU solve checked its error (estimates, f64 judgements and their time): what its
     /// iterations cost beyond their kernels; zero on the CPU.
     pub gpu_checks: crate::solvers::GpuChecks,
-    /// The largest free velocity of the step's contacts, gap terms left out (m/s): the velocity
-    /// test's scale, so that every contact's residual was asked to be at most `tol` times it.
-    /// A grain falling through a settled pile raises it 100-fold (BENCHMARKS.md, "The velocity
-    /// test's scale follows the fastest grain").
+    /// The scale the velocity tests divide a contact's residual by (m/s), so that every contact
+    /// was asked to be within `tol` times it. Under `step-velocity` it is one step of the applied
+    /// acceleration (g h); otherwise the largest free velocity of the step's contacts, gap terms
+    /// left out, which a grain falling through a settled pile raises 100-fold (BENCHMARKS.md,
+    /// "The velocity test's scale follows the fastest grain").
     pub velocity_scale: f64,
 }
 
