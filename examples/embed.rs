@@ -5,7 +5,7 @@
 
 use glam::DVec2;
 use moreau::solvers::{SolverKind, SolverOptions};
-use moreau::stepping::{Simulation, StepSettings};
+use moreau::stepping::{Simulation, StepSettings, DEFAULT_PROJECTION_SLACK};
 use moreau::world::{BodySpec, Effects, Interaction, Materials, Wall, World};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -19,6 +19,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         h: 1e-3,
         theta: 0.5,
         alert: 1e-4,
+        projection_slack: DEFAULT_PROJECTION_SLACK,
         solver: SolverKind::Nlgs,
         options: SolverOptions { tol: 1e-6, max_iter: 5000, ..SolverOptions::default() },
     };

@@ -437,3 +437,33 @@ fn the_step_velocity_test_holds_resting_contacts_to_a_step_of_gravity_beside_a_f
         assert!(loose > 5.0 * tol, "{ordering:?}: the velocity test left resting contacts at {loose:e} of g h");
     }
 }
+
+/// The position projection leaves a pair that grew less than `projection_slack` × its radius
+/// deeper within a step, and such growth accumulates: a stack solved loosely (every contact
+/// within 0.5 g h, on a work list) sinks into itself by up to 0.5 g h × h a step under the
+/// default slack, and not at all with `projection_slack = 0` in `[time]`; a slack outside
+/// [0, 1) is refused by name.
+#[test]
+fn a_projection_slack_of_zero_stops_overlaps_creeping_below_the_default_slack() {
+    let loose = "criterion = \"step-velocity\"\ntol = 0.5\nordering = \"worklist\"\n";
+    let deepest = |slack: Option<&str>| {
+        let mut s = common::stack_scene(false, 200, loose);
+        if let Some(slack) = slack {
+            s = s.replacen("steps = 200\n", &format!("steps = 200\nprojection_slack = {slack}\n"), 1);
+        }
+        run("stack", &s, None).reports.iter().map(|r| r.max_penetration).fold(0.0, f64::max)
+    };
+    // Radius 0.5 m: the default slack is 5e-5 m a step; 0.5 g h × h is 4.9e-6 m.
+    let (default, zero) = (deepest(None), deepest(Some("0.0")));
+    assert!(default > 1e-5, "the loose stack did not sink under the default slack: {default:e}");
+    assert!(zero < 1e-12, "overlaps crept with projection_slack = 0: {zero:e}");
+    for bad in ["-1e-4", "1.5"] {
+        let s = common::stack_scene(false, 1, loose).replacen(
+            "steps = 1\n",
+            &format!("steps = 1\nprojection_slack = {bad}\n"),
+            1,
+        );
+        let e = moreau::scene::parse(&s, Path::new("slack.toml")).map(|_| ()).unwrap_err().to_string();
+        assert!(e.contains("projection_slack") && e.contains("[0, 1)"), "{e}");
+    }
+}

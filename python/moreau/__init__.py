@@ -235,12 +235,14 @@ class Simulation:
 
     def __init__(self, world: World, h: float, theta: float = 0.5, alert: Optional[float] = None,
                  solver: str = "nlgs", tol: float = 1e-4, max_iter: int = 10_000, anderson: int = 0,
-                 focus: int = 0, criterion: str = "natural", ordering: str = "forward") -> None:
+                 focus: int = 0, criterion: str = "natural", ordering: str = "forward",
+                 projection_slack: float = 1e-4) -> None:
         if isinstance(world, _moreau.Simulation):
             self._inner = world
             return
         self._inner = _moreau.Simulation(world, h, theta, alert, solver, tol, max_iter,
-                                         _count(anderson, "anderson"), _count(focus, "focus"), criterion, ordering)
+                                         _count(anderson, "anderson"), _count(focus, "focus"), criterion, ordering,
+                                         projection_slack)
 
     def set_solver(self, solver: Optional[str] = None, tol: Optional[float] = None,
                    max_iter: Optional[int] = None, criterion: Optional[str] = None,

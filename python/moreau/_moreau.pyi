@@ -94,6 +94,7 @@ class Simulation:
         focus: int = 0,
         criterion: str = "natural",
         ordering: str = "forward",
+        projection_slack: float = 1e-4,
     ) -> None: ...
     def set_solver(
         self,

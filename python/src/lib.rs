@@ -358,9 +358,10 @@ struct Simulation(moreau::Simulation);
 #[pymethods]
 impl Simulation {
     /// A simulation of `world` with time step `h`; the alert distance defaults to 5 % of the
-    /// smallest grain radius and the solver to NLGS at `tol`.
+    /// smallest grain radius, the solver to NLGS at `tol` and the position projection's slack to
+    /// 1e-4 of a radius.
     #[new]
-    #[pyo3(signature = (world, h, theta = 0.5, alert = None, solver = "nlgs", tol = 1e-4, max_iter = 10_000, anderson = 0, focus = 0, criterion = "natural", ordering = "forward"))]
+    #[pyo3(signature = (world, h, theta = 0.5, alert = None, solver = "nlgs", tol = 1e-4, max_iter = 10_000, anderson = 0, focus = 0, criterion = "natural", ordering = "forward", projection_slack = moreau::stepping::DEFAULT_PROJECTION_SLACK))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         world: &World,
@@ -374,9 +375,10 @@ impl Simulation {
         focus: usize,
         criterion: &str,
         ordering: &str,
+        projection_slack: f64,
     ) -> PyResult<Self> {
         let mut settings = StepSettings::for_world(&world.0, h);
-        settings.theta = theta;
+        (settings.theta, settings.projection_slack) = (theta, projection_slack);
         settings.alert = alert.unwrap_or(settings.alert);
         settings.solver = moreau::SolverKind::from_name(solver).map_err(error)?;
         let (criterion, ordering) = criterion_and_ordering(criterion, ordering)?;

@@ -261,6 +261,22 @@ def test_a_world_built_from_python_lets_a_grain_land_and_rest():
     assert focused.error <= 1e-10 and any(n.startswith("focused sweeps: ") for n in focused.notes), focused.notes
 
 
+def test_a_projection_slack_of_zero_from_python_stops_a_loosely_solved_stack_sinking():
+    def deepest(**slack):
+        world = moreau.World([("g", 1.0)], friction=0.5, gravity=(0.0, -9.81))
+        world.add_wall((-1.0, 0.0), (4.0, 0.0), "g")
+        for k in range(4):
+            world.add_disk((0.0, 0.5 + k), 0.5, "g")
+        # Every contact within 0.5 g h: up to 4.9e-6 m of overlap a step, below the default
+        # slack (1e-4 of the 0.5 m radius), so it accumulates unless the slack is 0.
+        sim = moreau.Simulation(world, 1e-3, tol=0.5, criterion="step-velocity", ordering="worklist", **slack)
+        return max(sim.step()["max_penetration"] for _ in range(200))
+
+    default, zero = deepest(), deepest(projection_slack=0.0)
+    assert default > 1e-5, default
+    assert zero < 1e-12, zero
+
+
 def test_rolling_resistance_from_python_stops_a_rolling_disk_after_three_v0_squared_over_four_eta_g():
     eta, v0, radius = 0.1, 1.0, 0.05
     world = moreau.World([("steel", 7800.0)], friction=0.5, gravity=(0.0, -9.81), rotation=True, rolling_resistance=eta)
@@ -312,6 +328,8 @@ def test_a_force_and_a_velocity_set_from_python_act_on_the_next_step():
         (lambda: moreau.solve(moreau.read_fc2d(SEED), anderson=-1), "anderson -1: must be a whole number >= 0"),
         (lambda: moreau.Simulation(moreau.World([("glass", 2500.0)]), 1e-3, anderson=51), "anderson 51"),
         (lambda: moreau.Simulation(moreau.World([("glass", 2500.0)]), 1e-3, focus=101), "focus 101: at most 100"),
+        (lambda: moreau.Simulation(moreau.World([("glass", 2500.0)]), 1e-3, projection_slack=-1.0),
+         "projection_slack -1 must lie in [0, 1)"),
         (lambda: moreau.solve(moreau.read_fc2d(SEED), focus=-1), "focus -1: must be a whole number >= 0"),
         (lambda: moreau.solve(moreau.read_fc2d(SEED), criterion="l2"), 'unknown criterion "l2" (one of: natural,'),
         (lambda: moreau.solve(moreau.read_fc2d(SEED), ordering="random"), 'unknown ordering "random" (one of: forward,'),

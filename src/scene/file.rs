@@ -88,6 +88,8 @@ struct TimeSpec {
     step: f64,
     steps: usize,
     theta: Option<f64>,
+    /// The position projection's slack, a fraction of the smaller grain's radius (default 1e-4).
+    projection_slack: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -826,7 +828,9 @@ impl Builder<'_> {
             Some(a) => a,
             None => crate::stepping::DEFAULT_ALERT_FRACTION * self.smallest_radius,
         };
-        let settings = StepSettings { h: time.step, theta: time.theta.unwrap_or(0.5), alert, solver: kind, options };
+        let projection_slack = time.projection_slack.unwrap_or(crate::stepping::DEFAULT_PROJECTION_SLACK);
+        let theta = time.theta.unwrap_or(0.5);
+        let settings = StepSettings { h: time.step, theta, alert, projection_slack, solver: kind, options };
         if let Err(m) = settings.validate() {
             let span = if m.contains("alert") { self.file.detection.as_ref().map(|d| d.span()) } else { None };
             return self.cx.err(span.unwrap_or_else(|| self.file.time.span()), "time/solver/detection", m);

@@ -14,5 +14,6 @@ pub use checkpoint::{CarriedContact, Checkpoint, WallState, CHECKPOINT_FORMAT};
 pub use measures::{normal_force_pdf, Measures, WallLoad};
 pub use simulation::{
     BodyError, ContactState, Simulation, StepError, StepReport, StepSettings, DEFAULT_ALERT_FRACTION,
+    DEFAULT_PROJECTION_SLACK,
 };
 pub use warm_start::WarmStart;

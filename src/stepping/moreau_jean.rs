@@ -461,8 +461,16 @@ fn apply(
             report.missed = missed;
             let end_op = operator(&sim.world, &end, dofs).map_err(|message| StepError::Problem { step, message })?;
             let mut gaps: Vec<f64> = end.iter().map(|c| c.gap).collect();
-            let (projected, traffic) =
-                project_positions(&mut sim.world, &sim.backend, &end_op, &end, &mut gaps, &target, report.iterations);
+            let (projected, traffic) = project_positions(
+                &mut sim.world,
+                &sim.backend,
+                &end_op,
+                &end,
+                &mut gaps,
+                &target,
+                sim.settings.projection_slack,
+                report.iterations,
+            );
             report.projected = projected;
             report.add_gpu_traffic(traffic);
             report.max_penetration = gaps.iter().fold(0.0, |m, g| m.max(-g));
@@ -470,8 +478,16 @@ fn apply(
             let start = (before.position.as_slice(), before.angle.as_slice());
             let mut gaps = end_of_step_gaps(op, &detected, &before.walls, start, &sim.world, h);
             let target: Vec<f64> = detected.iter().map(|c| c.gap.min(0.0)).collect();
-            let (projected, traffic) =
-                project_positions(&mut sim.world, &sim.backend, op, &detected, &mut gaps, &target, report.iterations);
+            let (projected, traffic) = project_positions(
+                &mut sim.world,
+                &sim.backend,
+                op,
+                &detected,
+                &mut gaps,
+                &target,
+                sim.settings.projection_slack,
+                report.iterations,
+            );
             report.projected = projected;
             report.add_gpu_traffic(traffic);
             report.max_penetration = gaps.iter().fold(0.0, |m, g| m.max(-g));

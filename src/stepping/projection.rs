@@ -24,10 +24,6 @@ const PROJECTION_BATCH: (usize, usize) = (20, 100);
 /// gains most: on the sandbox it ends the projection 2.5–4× sooner with 7–18× smaller overlaps left).
 const PROJECTION_ANDERSON: usize = 5;
 
-/// A new overlap below this fraction of the smaller grain's radius is left as it is: the
-/// projection runs only where the θ-update leaves a pair visibly deeper than it started.
-const PROJECTION_SLACK: f64 = 1e-4;
-
 /// The local pass is tried when at most this share of the contacts went deeper than their slack
 /// (a settled pile's step: a few pairs, resolved in a few updates); beyond it overlaps are
 /// everywhere (grains falling in: hundreds of the 400-disk pile's 860) and whole sweeps pay.
@@ -76,6 +72,9 @@ pub(super) fn end_of_step_gaps(
 /// contacts needed it and the GPU traffic of its sweeps (dispatches, bytes). A few deep pairs are
 /// resolved by a local pass on the CPU ([`project_locally`]); otherwise sweeps run on
 /// `backend`'s device, from where that pass got. The test that ends them is the same, in f64.
+/// A pair less than `slack` × the smaller radius below its target is left as it is (the
+/// projection runs only where the θ-update leaves a pair visibly deeper than it started).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn project_positions(
     world: &mut World,
     backend: &Backend,
@@ -83,6 +82,7 @@ pub(super) fn project_positions(
     contacts: &[DetectedContact],
     gaps: &mut [f64],
     targets: &[f64],
+    slack: f64,
     solve_iterations: usize,
 ) -> (usize, (u64, u64)) {
     let b = &world.bodies;
@@ -91,7 +91,7 @@ pub(super) fn project_positions(
         Antagonist::Wall(_) => b.bounding_radius[c.i],
     };
     let excess = |a: usize| targets[a] - gaps[a];
-    let deeper = (0..contacts.len()).filter(|&a| excess(a) > PROJECTION_SLACK * size(&contacts[a])).count();
+    let deeper = (0..contacts.len()).filter(|&a| excess(a) > slack * size(&contacts[a])).count();
     if deeper == 0 {
         return (0, (0, 0));
     }
@@ -110,7 +110,7 @@ pub(super) fn project_positions(
     for a in 0..contacts.len() {
         q[2 * a] = (-excess(a)).min(cap);
     }
-    let slack: Vec<f64> = contacts.iter().map(|c| PROJECTION_SLACK * size(c)).collect();
+    let slack: Vec<f64> = contacts.iter().map(|c| slack * size(c)).collect();
     let mut dg = vec![0.0; 2 * contacts.len()];
     // Usually a handful of pairs went deep: resolving them and whatever they push is far cheaper
     // than sweeping every contact, and ends on the same test.

@@ -22,6 +22,10 @@ pub struct StepSettings {
     pub theta: f64,
     /// Pairs closer than this become contacts (absolute length).
     pub alert: f64,
+    /// An overlap that grew within a step by less than this fraction of the smaller grain's
+    /// radius is left as it is; deeper ones are projected back to where they started the step.
+    /// Growth below it accumulates over steps (BENCHMARKS.md, "The position projection's slack").
+    pub projection_slack: f64,
     /// The solver of every step.
     pub solver: SolverKind,
     /// Its options (tolerance, budget, criterion).
@@ -30,6 +34,9 @@ pub struct StepSettings {
 
 /// A scene's default alert distance, as a fraction of its smallest grain radius.
 pub const DEFAULT_ALERT_FRACTION: f64 = 0.05;
+
+/// The default [`StepSettings::projection_slack`].
+pub const DEFAULT_PROJECTION_SLACK: f64 = 1e-4;
 
 impl StepSettings {
     /// The settings a scene file gets when it names only its time step: θ = 1/2, an alert
@@ -43,6 +50,7 @@ impl StepSettings {
             h,
             theta: 0.5,
             alert: if smallest.is_finite() { DEFAULT_ALERT_FRACTION * smallest } else { 0.0 },
+            projection_slack: DEFAULT_PROJECTION_SLACK,
             solver: SolverKind::Nlgs,
             options: SolverOptions { tol: 1e-4, max_iter: 10_000, ..SolverOptions::default() },
         }
@@ -58,6 +66,12 @@ impl StepSettings {
         }
         if !(self.alert.is_finite() && self.alert >= 0.0) {
             return Err(format!("alert distance {} must be finite and >= 0", self.alert));
+        }
+        if !(0.0..1.0).contains(&self.projection_slack) {
+            return Err(format!(
+                "projection_slack {} must lie in [0, 1): a fraction of a radius",
+                self.projection_slack
+            ));
         }
         self.options.validate().map_err(|e| format!("solver {e}"))
     }
