@@ -110,18 +110,18 @@ pub(super) fn project_positions(
     for a in 0..contacts.len() {
         q[2 * a] = (-excess(a)).min(cap);
     }
-    let slack: Vec<f64> = contacts.iter().map(|c| slack * size(c)).collect();
+    let slacks: Vec<f64> = contacts.iter().map(|c| slack * size(c)).collect();
     let mut dg = vec![0.0; 2 * contacts.len()];
     // Usually a handful of pairs went deep: resolving them and whatever they push is far cheaper
     // than sweeping every contact, and ends on the same test.
     let nc = contacts.len() as f64;
     let local = match deeper as f64 <= LOCAL_SHARE * nc {
-        true => project_locally(op, &q, &slack, (LOCAL_UPDATES * nc) as usize),
+        true => project_locally(op, &q, &slacks, (LOCAL_UPDATES * nc) as usize),
         false => Err(vec![0.0; 2 * contacts.len()]),
     };
     let (dx, traffic) = match local {
         Ok(dx) => (dx, (0, 0)),
-        Err(p) => match project_by_sweeps(op, backend, &q, &excess, &slack, p, solve_iterations) {
+        Err(p) => match project_by_sweeps(op, backend, &q, &excess, &slacks, p, solve_iterations) {
             (Some(dx), traffic) => (dx, traffic),
             (None, traffic) => return (0, traffic),
         },
