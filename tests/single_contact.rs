@@ -70,3 +70,33 @@ fn frictionless_contact_has_no_tangential_impulse() {
     let (r, _) = solve_single_contact(&[2.0, 0.3, 0.3, 5.0], [-1.0, 4.0], 0.0);
     assert_eq!(r, [0.5, 0.0]);
 }
+
+/// Over-relaxed NLGS (ω > 1) extrapolates past each contact's exact answer; what it keeps must
+/// still lie in the cone. One sweep from a warm start, W = I (so the local answer is `−q`'s
+/// projection): a contact that opens would keep a pulling impulse −(ω − 1) r_n, and one that
+/// reverses its slip would leave the cone's edge by (ω − 1) μ r_n.
+#[test]
+fn over_relaxed_nlgs_keeps_each_impulse_in_the_cone() {
+    use moreau::problem::block_sparse::BlockSparse;
+    use moreau::problem::delassus::Delassus;
+    use moreau::{solve, ContactProblem, SolverKind, SolverOptions};
+    let mu = 0.5;
+    // (q, warm start): a contact that opens; one that slides the other way.
+    for (q, r0) in [([1.0, 0.0], [1.0, 0.0]), ([-1.0, 2.0], [1.0, mu])] {
+        let w = BlockSparse::from_block_triplets(1, vec![(0, 0, [1.0, 0.0, 0.0, 1.0])]);
+        let p = ContactProblem::new(Delassus::Sparse(w), q.to_vec(), vec![mu]).unwrap();
+        let exact = solve_single_contact(&[1.0, 0.0, 0.0, 1.0], q, mu).0;
+        for omega in [0.5, 1.0, 1.5, 1.8] {
+            let opts = SolverOptions { omega, max_iter: 1, tol: 1e-300, ..SolverOptions::default() };
+            let r = solve(&p, SolverKind::Nlgs, &opts, Some(&r0)).r;
+            assert!(
+                r[0] >= 0.0 && r[1].abs() <= mu * r[0] + 1e-15,
+                "ω = {omega}, q = {q:?}: r = {r:?} leaves the cone"
+            );
+            // Under-relaxed, the step is the convex combination; over-relaxed, it is projected
+            // back and lands no farther from the exact answer than the warm start.
+            let dist = |x: &[f64]| ((x[0] - exact[0]).powi(2) + (x[1] - exact[1]).powi(2)).sqrt();
+            assert!(dist(&r) <= dist(&r0) + 1e-15, "ω = {omega}, q = {q:?}: r = {r:?} moved away from {exact:?}");
+        }
+    }
+}

@@ -248,7 +248,8 @@ pub struct SolverOptions {
     pub max_iter: usize,
     /// Which measure judges convergence.
     pub criterion: StopCriterion,
-    /// NLGS relaxation ω (1 = plain Gauss–Seidel).
+    /// NLGS relaxation ω (1 = plain Gauss–Seidel; above 1 each update is projected back onto the
+    /// cone, projected SOR).
     pub omega: f64,
     /// NLGS: the order contacts are visited in.
     pub ordering: Ordering,

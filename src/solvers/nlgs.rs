@@ -29,7 +29,7 @@ use super::worklist;
 use super::{Ordering, SolveReport, SolverKind, SolverOptions};
 use crate::parallel::parallel;
 use crate::problem::colouring::Colouring;
-use crate::problem::cone::solve_single_contact;
+use crate::problem::cone::{project_cone, solve_single_contact};
 use crate::problem::delassus::SweepState;
 use crate::problem::matrix_free::{SharedSlice, Velocities};
 use crate::problem::{ContactProblem, Delassus, Mat2, MatrixFree};
@@ -240,11 +240,17 @@ pub(super) fn local_solve(p: &ContactProblem, d: &Mat2, a: usize, ra: [f64; 2], 
     let q_local =
         [p.q[2 * a] + wr[0] - (d[0] * ra[0] + d[1] * ra[1]), p.q[2 * a + 1] + wr[1] - (d[2] * ra[0] + d[3] * ra[1])];
     let (rn, _) = solve_single_contact(d, q_local, p.mu[a]);
-    if omega != 1.0 {
-        // A convex combination of two cone points stays in the cone.
-        [omega * rn[0] + (1.0 - omega) * ra[0], omega * rn[1] + (1.0 - omega) * ra[1]]
+    if omega == 1.0 {
+        return rn;
+    }
+    let relaxed = [omega * rn[0] + (1.0 - omega) * ra[0], omega * rn[1] + (1.0 - omega) * ra[1]];
+    // Under-relaxed, a convex combination of two cone points stays in the cone; over-relaxed, it
+    // extrapolates past the local answer and can leave it (a contact that opens would pull), so it
+    // is projected back: projected SOR.
+    if omega > 1.0 {
+        project_cone(relaxed, p.mu[a])
     } else {
-        rn
+        relaxed
     }
 }
 
