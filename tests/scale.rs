@@ -317,6 +317,22 @@ fn a_work_list_meets_the_velocity_test_in_fewer_updates_and_the_same_bits_on_any
 }
 
 #[test]
+fn a_work_list_checks_the_full_error_when_its_list_empties_and_by_cost_alone() {
+    // The 400-disk pile's 120th step from zero at tol 1e-3: full sweeps, then the list (120
+    // sweeps' worth in all, measured). Each sweep's worth changes little of the iterate, so the
+    // light rule (check when ‖Δr‖/‖r‖ ≤ tol) called 8 extra checks, at iterations 94-102.
+    let p = scene_problem("scenes/pile.toml", 120);
+    let r = solve(&p, SolverKind::Nlgs, &work_list(1e-3, 50_000), None);
+    assert!(r.converged, "{}", r.stop_reason);
+    let checked: Vec<usize> = r.history.iter().map(|h| h.iteration).collect();
+    assert!(
+        checked.iter().all(|&k| k % CHECK_WORK == 0 || k == r.iterations),
+        "checks at {checked:?} of {} iterations: only every {CHECK_WORK} and when the list empties",
+        r.iterations
+    );
+}
+
+#[test]
 fn the_gpu_keeps_the_work_list_as_thresholded_sweeps_that_leave_converged_contacts_alone() {
     let Some(ctx) = common::gpu_context() else { return };
     let gpu = Backend::gpu(ctx);

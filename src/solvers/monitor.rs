@@ -126,6 +126,15 @@ impl<'a> Monitor<'a> {
         self.stop_reason.get_or_insert_with(|| (reason, detail.into()));
     }
 
+    /// Checks by cost only, and when the solver asks ([`Self::observe_with_product`]): for a
+    /// solver that knows when its iterate may meet the test (the work list, once its list is
+    /// empty). There the change between iterates, which touch a few contacts each, is always
+    /// small, and the light rule would check every iteration.
+    pub fn without_light_rule(mut self) -> Self {
+        self.tol_light = f64::NEG_INFINITY;
+        self
+    }
+
     /// [`Self::observe`], with the full check made now on a product of its own, which
     /// [`Self::finish`] reuses when this iterate is the one returned.
     pub fn observe_with_product(&mut self, r: &[f64]) -> bool {
@@ -145,7 +154,9 @@ impl<'a> Monitor<'a> {
             self.stop_with(StopReason::Diverged, "diverged: the iterate holds NaN or Inf");
             return true;
         }
-        let light = {
+        let light = if self.tol_light == f64::NEG_INFINITY {
+            f64::INFINITY
+        } else {
             let nc = r.len() / 2;
             let prev = &self.r_prev;
             let d = chunked_sum(nc, |a| {
