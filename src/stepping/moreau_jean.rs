@@ -453,45 +453,33 @@ fn apply(
     let projection_start = Instant::now();
     if let Some(problem) = &problem {
         let Delassus::MatrixFree(op) = &problem.w else { unreachable!("the step builds a matrix-free problem") };
-        if outran_reach(&before, &sim.world, alert, &reach.0) {
+        let (end, end_op);
+        let (op, contacts, mut gaps, target) = if outran_reach(&before, &sim.world, alert, &reach.0) {
             let again = Instant::now();
-            let end = detect(&mut sim.detector, &sim.world, alert, (&[], &[]));
+            end = detect(&mut sim.detector, &sim.world, alert, (&[], &[]));
             detection_seconds += again.elapsed().as_secs_f64();
             let (target, missed) = targets(&end, &detected);
             report.missed = missed;
-            let end_op = operator(&sim.world, &end, dofs).map_err(|message| StepError::Problem { step, message })?;
-            let mut gaps: Vec<f64> = end.iter().map(|c| c.gap).collect();
-            let (projected, traffic) = project_positions(
-                &mut sim.world,
-                &sim.backend,
-                &end_op,
-                &end,
-                &mut gaps,
-                &target,
-                sim.settings.projection_slack,
-                report.iterations,
-            );
-            report.projected = projected;
-            report.add_gpu_traffic(traffic);
-            report.max_penetration = gaps.iter().fold(0.0, |m, g| m.max(-g));
+            end_op = operator(&sim.world, &end, dofs).map_err(|message| StepError::Problem { step, message })?;
+            (&end_op, end.as_slice(), end.iter().map(|c| c.gap).collect(), target)
         } else {
             let start = (before.position.as_slice(), before.angle.as_slice());
-            let mut gaps = end_of_step_gaps(op, &detected, &before.walls, start, &sim.world, h);
-            let target: Vec<f64> = detected.iter().map(|c| c.gap.min(0.0)).collect();
-            let (projected, traffic) = project_positions(
-                &mut sim.world,
-                &sim.backend,
-                op,
-                &detected,
-                &mut gaps,
-                &target,
-                sim.settings.projection_slack,
-                report.iterations,
-            );
-            report.projected = projected;
-            report.add_gpu_traffic(traffic);
-            report.max_penetration = gaps.iter().fold(0.0, |m, g| m.max(-g));
-        }
+            let gaps = end_of_step_gaps(op, &detected, &before.walls, start, &sim.world, h);
+            (op, detected.as_slice(), gaps, detected.iter().map(|c| c.gap.min(0.0)).collect::<Vec<f64>>())
+        };
+        let (projected, traffic) = project_positions(
+            &mut sim.world,
+            &sim.backend,
+            op,
+            contacts,
+            &mut gaps,
+            &target,
+            sim.settings.projection_slack,
+            report.iterations,
+        );
+        report.projected = projected;
+        report.add_gpu_traffic(traffic);
+        report.max_penetration = gaps.iter().fold(0.0, |m, g| m.max(-g));
         // Less the detection at the end of the step, which counts as detection.
         report.projection_seconds =
             projection_start.elapsed().as_secs_f64() - (detection_seconds - report.detection_seconds);
