@@ -199,6 +199,7 @@ def solve(
     focus: int = 0,
     criterion: str = "natural",
     ordering: str = "forward",
+    omega: float = 1.0,
 ) -> SolveResult:
     """Solves ``problem`` with ``solver`` (one of :data:`SOLVERS`) to ``tol`` on ``criterion``
     (one of :data:`CRITERIA`; the relative natural-map error by default), on ``device``
@@ -206,8 +207,9 @@ def solve(
     (zero if None). NLGS sweeps in ``ordering`` (one of :data:`ORDERINGS`), mixes its last
     ``anderson`` sweeps (Anderson acceleration, 0: off) and, on a matrix-free problem (a
     simulation step's), follows each full sweep with ``focus`` sweeps over the contacts around
-    its largest changes (0: off; iterations then count sweeps' worth of contact updates). Not
-    converging is not an error: the result says so."""
+    its largest changes (0: off; iterations then count sweeps' worth of contact updates), and
+    relaxes each contact's update by ``omega`` in (0, 2) (1: plain Gauss–Seidel; above 1 each
+    update is projected back onto the cone). Not converging is not an error: the result says so."""
     if not isinstance(problem, Problem):
         raise MoreauError(f"problem: expected a moreau.Problem, got {type(problem).__name__}")
     if isinstance(max_iter, bool) or int(max_iter) != max_iter or max_iter < 0:
@@ -216,7 +218,7 @@ def solve(
     focus = _count(focus, "focus")
     r0_bytes = None if r0 is None else _f64(r0, "r0")
     d = _moreau.solve(problem._inner, solver, float(tol), int(max_iter), device, int(threads), r0_bytes,
-                      int(history_every), anderson, focus, criterion, ordering)
+                      int(history_every), anderson, focus, criterion, ordering, float(omega))
     d["r"] = _from(d["r"], "<f8")
     d["u"] = _from(d["u"], "<f8")
     return SolveResult(**d)
@@ -236,18 +238,18 @@ class Simulation:
     def __init__(self, world: World, h: float, theta: float = 0.5, alert: Optional[float] = None,
                  solver: str = "nlgs", tol: float = 1e-4, max_iter: int = 10_000, anderson: int = 0,
                  focus: int = 0, criterion: str = "natural", ordering: str = "forward",
-                 projection_slack: float = 1e-4) -> None:
+                 projection_slack: float = 1e-4, omega: float = 1.0) -> None:
         if isinstance(world, _moreau.Simulation):
             self._inner = world
             return
         self._inner = _moreau.Simulation(world, h, theta, alert, solver, tol, max_iter,
                                          _count(anderson, "anderson"), _count(focus, "focus"), criterion, ordering,
-                                         projection_slack)
+                                         projection_slack, float(omega))
 
     def set_solver(self, solver: Optional[str] = None, tol: Optional[float] = None,
                    max_iter: Optional[int] = None, criterion: Optional[str] = None,
                    ordering: Optional[str] = None, anderson: Optional[int] = None,
-                   focus: Optional[int] = None) -> None:
+                   focus: Optional[int] = None, omega: Optional[float] = None) -> None:
         """Sets the solver of the following steps, as ``moreau run``'s options override a
         scene's: each argument given replaces the current setting, the others stay. Settings
         that cannot run (``max_iter`` 0, a solver the device or the rolling rows refuse) raise
@@ -255,7 +257,8 @@ class Simulation:
         def count(x: Optional[int], name: str) -> Optional[int]:
             return None if x is None else _count(x, name)
         self._inner.set_solver(solver, None if tol is None else float(tol), count(max_iter, "max_iter"),
-                               criterion, ordering, count(anderson, "anderson"), count(focus, "focus"))
+                               criterion, ordering, count(anderson, "anderson"), count(focus, "focus"),
+                               None if omega is None else float(omega))
 
     def solver_settings(self) -> Dict[str, Any]:
         """The solver of the steps and its options: ``solver``, ``tol``, ``max_iter``,

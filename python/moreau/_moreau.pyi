@@ -39,6 +39,7 @@ def solve(
     focus: int = 0,
     criterion: str = "natural",
     ordering: str = "forward",
+    omega: float = 1.0,
 ) -> Dict[str, Any]: ...
 
 class World:
@@ -95,6 +96,7 @@ class Simulation:
         criterion: str = "natural",
         ordering: str = "forward",
         projection_slack: float = 1e-4,
+        omega: float = 1.0,
     ) -> None: ...
     def set_solver(
         self,
@@ -105,6 +107,7 @@ class Simulation:
         ordering: Optional[str] = None,
         anderson: Optional[int] = None,
         focus: Optional[int] = None,
+        omega: Optional[float] = None,
     ) -> None: ...
     def solver_settings(self) -> Dict[str, Any]: ...
     @staticmethod

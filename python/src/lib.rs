@@ -122,7 +122,7 @@ fn read_problem(path: PathBuf) -> PyResult<Problem> {
 
 /// Solves `problem`; returns a dict of the report (arrays as bytes).
 #[pyfunction]
-#[pyo3(signature = (problem, solver, tol, max_iter, device, threads, r0 = None, history_every = 0, anderson = 0, focus = 0, criterion = "natural", ordering = "forward"))]
+#[pyo3(signature = (problem, solver, tol, max_iter, device, threads, r0 = None, history_every = 0, anderson = 0, focus = 0, criterion = "natural", ordering = "forward", omega = 1.0))]
 #[allow(clippy::too_many_arguments)]
 fn solve<'py>(
     py: Python<'py>,
@@ -138,6 +138,7 @@ fn solve<'py>(
     focus: usize,
     criterion: &str,
     ordering: &str,
+    omega: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let r0 = r0.map(|b| floats(b, "r0")).transpose()?;
     let (criterion, ordering) = criterion_and_ordering(criterion, ordering)?;
@@ -149,6 +150,7 @@ fn solve<'py>(
         focus,
         criterion,
         ordering,
+        omega,
         ..SolverOptions::default()
     };
     let problem = &problem.0;
@@ -361,7 +363,7 @@ impl Simulation {
     /// smallest grain radius, the solver to NLGS at `tol` and the position projection's slack to
     /// 1e-4 of a radius.
     #[new]
-    #[pyo3(signature = (world, h, theta = 0.5, alert = None, solver = "nlgs", tol = 1e-4, max_iter = 10_000, anderson = 0, focus = 0, criterion = "natural", ordering = "forward", projection_slack = moreau::stepping::DEFAULT_PROJECTION_SLACK))]
+    #[pyo3(signature = (world, h, theta = 0.5, alert = None, solver = "nlgs", tol = 1e-4, max_iter = 10_000, anderson = 0, focus = 0, criterion = "natural", ordering = "forward", projection_slack = moreau::stepping::DEFAULT_PROJECTION_SLACK, omega = 1.0))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         world: &World,
@@ -376,20 +378,22 @@ impl Simulation {
         criterion: &str,
         ordering: &str,
         projection_slack: f64,
+        omega: f64,
     ) -> PyResult<Self> {
         let mut settings = StepSettings::for_world(&world.0, h);
         (settings.theta, settings.projection_slack) = (theta, projection_slack);
         settings.alert = alert.unwrap_or(settings.alert);
         settings.solver = moreau::SolverKind::from_name(solver).map_err(error)?;
         let (criterion, ordering) = criterion_and_ordering(criterion, ordering)?;
-        settings.options = SolverOptions { tol, max_iter, anderson, focus, criterion, ordering, ..settings.options };
+        settings.options =
+            SolverOptions { tol, max_iter, anderson, focus, criterion, ordering, omega, ..settings.options };
         moreau::Simulation::new(world.0.clone(), settings).map(Self).map_err(error)
     }
 
     /// The solver of the following steps: each argument given replaces the current setting (a
     /// scene's, or the constructor's), the others stay; refused, with the settings unchanged,
     /// when the result cannot run.
-    #[pyo3(signature = (solver = None, tol = None, max_iter = None, criterion = None, ordering = None, anderson = None, focus = None))]
+    #[pyo3(signature = (solver = None, tol = None, max_iter = None, criterion = None, ordering = None, anderson = None, focus = None, omega = None))]
     #[allow(clippy::too_many_arguments)]
     fn set_solver(
         &mut self,
@@ -400,6 +404,7 @@ impl Simulation {
         ordering: Option<&str>,
         anderson: Option<usize>,
         focus: Option<usize>,
+        omega: Option<f64>,
     ) -> PyResult<()> {
         let now = &self.0.settings;
         let solver = solver.map(moreau::SolverKind::from_name).transpose().map_err(error)?.unwrap_or(now.solver);
@@ -411,6 +416,7 @@ impl Simulation {
         options.ordering = ordering.map(Ordering::from_name).transpose().map_err(error)?.unwrap_or(options.ordering);
         options.anderson = anderson.unwrap_or(options.anderson);
         options.focus = focus.unwrap_or(options.focus);
+        options.omega = omega.unwrap_or(options.omega);
         self.0.set_solver(solver, options).map_err(error)
     }
 

@@ -62,6 +62,26 @@ def test_anderson_acceleration_from_python_matches_the_command_line(tmp_path):
     assert plain.converged and plain.iterations != mixed.iterations
 
 
+def test_over_relaxed_nlgs_from_python_is_the_command_lines_and_stays_in_the_cone(tmp_path):
+    out = tmp_path / "solve.json"
+    args = [cli(), "solve", str(SEED), "--solver", "nlgs", "--tol", "1e-8", "--max-iter", "5000", "--threads", "1"]
+    subprocess.run(args + ["--omega", "1.3", "--device", "cpu", "--out", str(out)], check=True, capture_output=True)
+    from_cli = json.loads(out.read_text())
+    problem = moreau.read_fc2d(SEED)
+    relaxed = moreau.solve(problem, tol=1e-8, max_iter=5000, threads=1, omega=1.3)
+    plain = moreau.solve(problem, tol=1e-8, max_iter=5000, threads=1)
+    assert relaxed.converged and relaxed.iterations == from_cli["iterations"]
+    assert np.linalg.norm(relaxed.r - np.array(from_cli["r"])) <= 1e-12 * np.linalg.norm(relaxed.r)
+    assert plain.iterations != relaxed.iterations
+    # Each contact's impulse in its cone, the normal one never pulling.
+    r = relaxed.r.reshape(-1, 2)
+    assert (r[:, 0] >= 0.0).all()
+    # A simulation takes it too, and reports it.
+    sim = moreau.Simulation.from_scene(PILE)
+    sim.set_solver(omega=1.2)
+    assert sim.solver_settings()["omega"] == 1.2
+
+
 def test_a_gpu_solve_below_the_f32_floor_lists_its_parts_as_the_command_line_does(tmp_path):
     problem = moreau.read_fc2d(SEED)
     try:
@@ -331,6 +351,9 @@ def test_a_force_and_a_velocity_set_from_python_act_on_the_next_step():
         (lambda: moreau.Simulation(moreau.World([("glass", 2500.0)]), 1e-3, projection_slack=-1.0),
          "projection_slack -1 must lie in [0, 1)"),
         (lambda: moreau.solve(moreau.read_fc2d(SEED), focus=-1), "focus -1: must be a whole number >= 0"),
+        (lambda: moreau.solve(moreau.read_fc2d(SEED), omega=2.5), "omega 2.5: the NLGS relaxation must lie in (0, 2)"),
+        (lambda: moreau.Simulation(moreau.World([("glass", 2500.0)]), 1e-3, omega=0.0), "omega 0: the NLGS relaxation"),
+        (lambda: moreau.Simulation.from_scene(PILE).set_solver(omega=2.0), "omega 2: the NLGS relaxation"),
         (lambda: moreau.solve(moreau.read_fc2d(SEED), criterion="l2"), 'unknown criterion "l2" (one of: natural,'),
         (lambda: moreau.solve(moreau.read_fc2d(SEED), ordering="random"), 'unknown ordering "random" (one of: forward,'),
         (lambda: moreau.Simulation(moreau.World([("glass", 2500.0)]), 1e-3, ordering="random"), 'unknown ordering "random"'),
