@@ -238,7 +238,7 @@ class Simulation:
     def __init__(self, world: World, h: float, theta: float = 0.5, alert: Optional[float] = None,
                  solver: str = "nlgs", tol: float = 1e-4, max_iter: int = 10_000, anderson: int = 0,
                  focus: int = 0, criterion: str = "natural", ordering: str = "forward",
-                 projection_slack: float = 1e-4, omega: float = 1.0) -> None:
+                 projection_slack: Optional[float] = None, omega: float = 1.0) -> None:
         if isinstance(world, _moreau.Simulation):
             self._inner = world
             return

@@ -95,7 +95,7 @@ class Simulation:
         focus: int = 0,
         criterion: str = "natural",
         ordering: str = "forward",
-        projection_slack: float = 1e-4,
+        projection_slack: Optional[float] = None,
         omega: float = 1.0,
     ) -> None: ...
     def set_solver(

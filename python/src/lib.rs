@@ -363,7 +363,7 @@ impl Simulation {
     /// smallest grain radius, the solver to NLGS at `tol` and the position projection's slack to
     /// 1e-4 of a radius.
     #[new]
-    #[pyo3(signature = (world, h, theta = 0.5, alert = None, solver = "nlgs", tol = 1e-4, max_iter = 10_000, anderson = 0, focus = 0, criterion = "natural", ordering = "forward", projection_slack = moreau::stepping::DEFAULT_PROJECTION_SLACK, omega = 1.0))]
+    #[pyo3(signature = (world, h, theta = 0.5, alert = None, solver = "nlgs", tol = 1e-4, max_iter = 10_000, anderson = 0, focus = 0, criterion = "natural", ordering = "forward", projection_slack = None, omega = 1.0))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         world: &World,
@@ -377,11 +377,12 @@ impl Simulation {
         focus: usize,
         criterion: &str,
         ordering: &str,
-        projection_slack: f64,
+        projection_slack: Option<f64>,
         omega: f64,
     ) -> PyResult<Self> {
         let mut settings = StepSettings::for_world(&world.0, h);
-        (settings.theta, settings.projection_slack) = (theta, projection_slack);
+        settings.theta = theta;
+        settings.projection_slack = projection_slack.unwrap_or(settings.projection_slack);
         settings.alert = alert.unwrap_or(settings.alert);
         settings.solver = moreau::SolverKind::from_name(solver).map_err(error)?;
         let (criterion, ordering) = criterion_and_ordering(criterion, ordering)?;
