@@ -432,7 +432,7 @@ fn solve_command(a: SolveArgs) -> Result<()> {
         kind
     });
     let backend = choose_backend(a.device, solver, &opts)?;
-    let report = backend.solve(&problem, solver, &opts, None)?;
+    let report = crate::parallel::on_pool(|| backend.solve(&problem, solver, &opts, None))?;
     let adapter = backend.adapter_name();
     let device = backend.name();
     println!("{}", summary_line(&report, device, a.tol));

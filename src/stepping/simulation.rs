@@ -521,7 +521,7 @@ impl Simulation {
         self.check()?;
         match self.pool.clone() {
             Some(pool) => pool.install(|| super::moreau_jean::step(self)),
-            None => super::moreau_jean::step(self),
+            None => crate::parallel::on_pool(|| super::moreau_jean::step(self)),
         }
     }
 
