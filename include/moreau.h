@@ -58,6 +58,10 @@ typedef struct MoreauSolveOptions {
   // `worklist` (the last two for a simulation's matrix-free steps). NULL: `forward` for a
   // solve, unchanged for a simulation.
   const char *ordering;
+  // NLGS's relaxation, in (0, 2): 1 is plain Gauss–Seidel; above 1 each contact is carried past
+  // its exact local answer and projected back onto its cone. 0: 1 for a solve, unchanged for a
+  // simulation.
+  double omega;
 } MoreauSolveOptions;
 
 // A solve's numbers (the arrays are copied out with `moreau_solution_copy_r` / `_u`).
@@ -181,13 +185,13 @@ enum MoreauStatus moreau_simulation_set_device(struct MoreauSimulation *sim,
                                                size_t threads);
 
 // The solver settings of the simulation's steps (a scene's, or those set since): `tol`,
-// `max_iter`, `anderson`; the names NULL (unchanged when handed back to
+// `max_iter`, `anderson`, `omega`; the names NULL (unchanged when handed back to
 // `moreau_simulation_set_solver`), `threads` 0.
 enum MoreauStatus moreau_simulation_solve_options(const struct MoreauSimulation *sim,
                                                   struct MoreauSolveOptions *out);
 
 // Sets the solver of the following steps from `options`: `tol`, `max_iter`, `anderson`, and
-// the solver, criterion and ordering each NULL keeps (`device` and `threads` are
+// the solver, criterion, ordering and relaxation each NULL (or 0) keeps (`device` and `threads` are
 // `moreau_simulation_set_device`'s). Settings that cannot run are refused and change nothing.
 enum MoreauStatus moreau_simulation_set_solver(struct MoreauSimulation *sim,
                                                const struct MoreauSolveOptions *options);

@@ -74,6 +74,10 @@ pub struct MoreauSolveOptions {
     /// `worklist` (the last two for a simulation's matrix-free steps). NULL: `forward` for a
     /// solve, unchanged for a simulation.
     pub ordering: *const c_char,
+    /// NLGS's relaxation, in (0, 2): 1 is plain Gauss–Seidel; above 1 each contact is carried past
+    /// its exact local answer and projected back onto its cone. 0: 1 for a solve, unchanged for a
+    /// simulation.
+    pub omega: f64,
 }
 
 /// A solve's numbers (the arrays are copied out with `moreau_solution_copy_r` / `_u`).
@@ -320,11 +324,13 @@ pub extern "C" fn moreau_solve_options_default() -> MoreauSolveOptions {
         anderson: d.anderson,
         criterion: std::ptr::null(),
         ordering: std::ptr::null(),
+        omega: d.omega,
     }
 }
 
-/// The criterion and the ordering `o` names, each NULL one taken from `now`.
-fn named_options(o: &MoreauSolveOptions, now: &SolverOptions) -> Result<(StopCriterion, Ordering), Failure> {
+/// `o`'s settings over `now`: `tol`, `max_iter`, `anderson`, and the criterion, the ordering and
+/// the relaxation, each NULL (0 for the relaxation) one taken from `now`.
+fn options_over(o: &MoreauSolveOptions, now: &SolverOptions) -> Result<SolverOptions, Failure> {
     let invalid = |e: String| (MoreauStatus::InvalidArgument, e);
     let criterion = match o.criterion.is_null() {
         true => now.criterion,
@@ -334,7 +340,16 @@ fn named_options(o: &MoreauSolveOptions, now: &SolverOptions) -> Result<(StopCri
         true => now.ordering,
         false => Ordering::from_name(text(o.ordering, "options.ordering")?).map_err(invalid)?,
     };
-    Ok((criterion, ordering))
+    let omega = if o.omega == 0.0 { now.omega } else { o.omega };
+    Ok(SolverOptions {
+        tol: o.tol,
+        max_iter: o.max_iter,
+        anderson: o.anderson,
+        criterion,
+        ordering,
+        omega,
+        ..now.clone()
+    })
 }
 
 /// Solves `problem` from `r0` (2n values, or NULL for zero). A solve that misses its tolerance
@@ -352,10 +367,7 @@ pub extern "C" fn moreau_solve(
         let r0 = if r0.is_null() { None } else { Some(slice(r0, 2 * problem.n_contacts(), "r0")?) };
         let solver = text(o.solver, "options.solver")?;
         let device = text(o.device, "options.device")?;
-        let defaults = SolverOptions::default();
-        let (criterion, ordering) = named_options(o, &defaults)?;
-        let opts =
-            SolverOptions { tol: o.tol, max_iter: o.max_iter, anderson: o.anderson, criterion, ordering, ..defaults };
+        let opts = options_over(o, &SolverOptions::default())?;
         let (report, device) =
             solve_by_name(problem, solver, device, o.threads, &opts, r0).or_else(|e| fail(MoreauStatus::Solve, e))?;
         let stop_reason = CString::new(report.stop_reason.replace('\0', " ")).unwrap_or_default();
@@ -441,7 +453,7 @@ pub extern "C" fn moreau_simulation_set_device(
 }
 
 /// The solver settings of the simulation's steps (a scene's, or those set since): `tol`,
-/// `max_iter`, `anderson`; the names NULL (unchanged when handed back to
+/// `max_iter`, `anderson`, `omega`; the names NULL (unchanged when handed back to
 /// `moreau_simulation_set_solver`), `threads` 0.
 #[no_mangle]
 pub extern "C" fn moreau_simulation_solve_options(
@@ -459,13 +471,14 @@ pub extern "C" fn moreau_simulation_solve_options(
             anderson: o.anderson,
             criterion: std::ptr::null(),
             ordering: std::ptr::null(),
+            omega: o.omega,
         };
         copy_out(&[options], out, 1, "out")
     })
 }
 
 /// Sets the solver of the following steps from `options`: `tol`, `max_iter`, `anderson`, and
-/// the solver, criterion and ordering each NULL keeps (`device` and `threads` are
+/// the solver, criterion, ordering and relaxation each NULL (or 0) keeps (`device` and `threads` are
 /// `moreau_simulation_set_device`'s). Settings that cannot run are refused and change nothing.
 #[no_mangle]
 pub extern "C" fn moreau_simulation_set_solver(
@@ -481,15 +494,7 @@ pub extern "C" fn moreau_simulation_set_solver(
             false => SolverKind::from_name(text(o.solver, "options.solver")?)
                 .or_else(|e| fail(MoreauStatus::InvalidArgument, e))?,
         };
-        let (criterion, ordering) = named_options(o, &now.options)?;
-        let options = SolverOptions {
-            tol: o.tol,
-            max_iter: o.max_iter,
-            anderson: o.anderson,
-            criterion,
-            ordering,
-            ..now.options.clone()
-        };
+        let options = options_over(o, &now.options)?;
         sim.set_solver(solver, options).or_else(|e| fail(MoreauStatus::InvalidArgument, e.to_string()))
     })
 }

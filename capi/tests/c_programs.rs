@@ -138,10 +138,16 @@ fn a_c_program_solves_a_siconos_file_as_the_library_does() {
     // With Anderson acceleration: the same iterations as the library's.
     let (code, out, err) = run(&program, &[file.to_str().unwrap(), "1e-10", "nlgs", "5"]);
     assert_eq!(code, Some(0), "{out}{err}");
-    let mixed = moreau::solve(&problem, SolverKind::Nlgs, &SolverOptions { anderson: 5, ..opts }, None);
+    let mixed = moreau::solve(&problem, SolverKind::Nlgs, &SolverOptions { anderson: 5, ..opts.clone() }, None);
     assert!(mixed.converged);
     assert_eq!(field(&out, "iterations") as usize, mixed.iterations, "{out}");
     assert_eq!(field(&out, "gpu_iterations"), 0.0, "{out}");
+    // Over-relaxed: the library's iterations at the same omega, not those of plain sweeps.
+    let (code, out, err) = run(&program, &[file.to_str().unwrap(), "1e-10", "nlgs", "0", "cpu", "1.3"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let relaxed = moreau::solve(&problem, SolverKind::Nlgs, &SolverOptions { omega: 1.3, ..opts }, None);
+    assert!(relaxed.converged && relaxed.iterations != rust.iterations);
+    assert_eq!(field(&out, "iterations") as usize, relaxed.iterations, "{out}");
     // On a GPU below the f32 floor: f32 sweeps there, then the f64 finish on the CPU, counted apart.
     let (code, out, err) = run(&program, &[file.to_str().unwrap(), "1e-10", "nlgs", "0", "gpu"]);
     if code == Some(1) && err.contains("adapter") && std::env::var("MOREAU_REQUIRE_GPU").as_deref() != Ok("1") {
@@ -207,11 +213,12 @@ fn bad_input_through_c_gets_the_command_lines_message_and_a_non_zero_exit() {
     let solve = compile("solve_file");
     let file = repo().join("fuzz/seeds/problem_parser/FC2D_SliderCrankLagrangian00000.dat");
     let file = file.to_str().unwrap();
-    let cases: [(&[&str], &str); 4] = [
+    let cases: [(&[&str], &str); 5] = [
         (&["/no/such/problem.dat"], "/no/such/problem.dat: No such file"),
         (&[file, "-1"], "tol -1: must be finite and > 0"),
         (&[file, "1e-8", "gauss"], "unknown solver \"gauss\" (one of: nlgs,"),
         (&[file, "1e-8", "nlgs", "51"], "anderson 51: Anderson acceleration keeps at most 50 past sweeps"),
+        (&[file, "1e-8", "nlgs", "0", "cpu", "2.5"], "omega 2.5: the NLGS relaxation must lie in (0, 2)"),
     ];
     for (args, message) in cases {
         let (code, out, err) = run(&solve, args);

@@ -1,7 +1,7 @@
 /* Solves a Siconos fc2d problem file with moreau's C interface and prints what the solve did.
  *
  *   cc -I include examples/c/solve_file.c -L target/release -lmoreau_c -o solve_file
- *   ./solve_file PROBLEM.dat [TOL [SOLVER [ANDERSON [DEVICE]]]]
+ *   ./solve_file PROBLEM.dat [TOL [SOLVER [ANDERSON [DEVICE [OMEGA]]]]]
  *
  * Exit status: 0 converged, 3 not converged, 1 an error (the message names it). */
 #include <stdio.h>
@@ -16,7 +16,7 @@ static int report_error(const char *what) {
 
 int main(int argc, char **argv) {
     if (argc < 2) {
-        fprintf(stderr, "usage: %s PROBLEM.dat [TOL [SOLVER [ANDERSON [DEVICE]]]]\n", argv[0]);
+        fprintf(stderr, "usage: %s PROBLEM.dat [TOL [SOLVER [ANDERSON [DEVICE [OMEGA]]]]]\n", argv[0]);
         return 2;
     }
     MoreauProblem *problem = NULL;
@@ -34,6 +34,9 @@ int main(int argc, char **argv) {
     }
     if (argc > 5) {
         options.device = argv[5];
+    }
+    if (argc > 6) {
+        options.omega = atof(argv[6]);
     }
     MoreauSolution *solution = NULL;
     if (moreau_solve(problem, &options, NULL, &solution) != MOREAU_STATUS_OK) {
