@@ -29,6 +29,8 @@ pub struct Monitor<'a> {
     pub w_products: usize,
     iteration: usize,
     r_prev: Vec<f64>,
+    /// Whether a small change between iterates calls a check (off: [`Self::without_light_rule`]).
+    light_rule: bool,
     tol_light: f64,
     history: Vec<HistoryPoint>,
     /// W's diagonal blocks, for the LMGC90 tests.
@@ -63,6 +65,7 @@ impl<'a> Monitor<'a> {
             w_products: 0,
             iteration: 0,
             r_prev: r0.to_vec(),
+            light_rule: true,
             tol_light: opts.tol,
             history: Vec::new(),
             diag,
@@ -131,7 +134,7 @@ impl<'a> Monitor<'a> {
     /// empty). There the change between iterates, which touch a few contacts each, is always
     /// small, and the light rule would check every iteration.
     pub fn without_light_rule(mut self) -> Self {
-        self.tol_light = f64::NEG_INFINITY;
+        self.light_rule = false;
         self
     }
 
@@ -154,7 +157,8 @@ impl<'a> Monitor<'a> {
             self.stop_with(StopReason::Diverged, "diverged: the iterate holds NaN or Inf");
             return true;
         }
-        let light = if self.tol_light == f64::NEG_INFINITY {
+        // With the rule off, a change that never calls a check.
+        let light = if !self.light_rule {
             f64::INFINITY
         } else {
             let nc = r.len() / 2;
