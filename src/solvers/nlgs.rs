@@ -374,7 +374,23 @@ pub(super) fn update_shared<L, G>(
     L: Fn(usize, [f64; 2], [f64; 2]) -> [f64; 2] + Sync,
     G: Fn(usize, &mut SharedSlice, &mut SharedSlice) + Sync,
 {
-    let wr = op.gather_one(a, v);
+    update_gathered(op, (local, rolling), a, op.gather_one(a, v), r, v);
+}
+
+/// [`update_shared`] with `W r` at contact `a` already gathered from the current velocities
+/// (a work list has just read them to test the contact).
+#[inline]
+pub(super) fn update_gathered<L, G>(
+    op: &MatrixFree,
+    (local, rolling): LocalSolves<L, G>,
+    a: usize,
+    wr: [f64; 2],
+    r: &mut SharedSlice,
+    v: &mut SharedSlice,
+) where
+    L: Fn(usize, [f64; 2], [f64; 2]) -> [f64; 2] + Sync,
+    G: Fn(usize, &mut SharedSlice, &mut SharedSlice) + Sync,
+{
     let ra = [r.get(2 * a), r.get(2 * a + 1)];
     let rn = local(a, ra, wr);
     let dr = [rn[0] - ra[0], rn[1] - ra[1]];

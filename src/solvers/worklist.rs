@@ -35,7 +35,7 @@ use std::collections::VecDeque;
 use rayon::prelude::*;
 
 use super::monitor::Monitor;
-use super::nlgs::{block_colours, local_solve, threaded_sweep, update_rolling, update_shared, Sweep};
+use super::nlgs::{block_colours, local_solve, threaded_sweep, update_gathered, update_rolling, Sweep};
 use super::stopping::velocity_scale;
 use super::{SolveReport, SolverKind, SolverOptions, StopCriterion};
 use crate::parallel::CHUNK;
@@ -130,7 +130,7 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
     // worth of updates: both cost about what that many updates save.
     let mut records: Vec<Record> = Vec::new();
     let mut neighbours = op.neighbours_from_bodies();
-    // Whether contact `a`'s residual exceeds `threshold` (compared squared).
+    // `W r` at contact `a` when its residual exceeds `threshold` (compared squared).
     let above = |records: &[Record], a: usize, r: &SharedSlice, v: &SharedSlice, threshold: f64| {
         let built;
         let k = match records.get(a) {
@@ -143,8 +143,9 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
         let g = op.gather_rows(&k.rows, k.levers.as_ref(), v);
         let u = [k.q[0] + g[0], k.q[1] + g[1]];
         let roll = rolling.then(|| (p.rolling[a], r.get(2 * nc + a), p.q[2 * nc + a] + op.gather_rolling(a, v)));
-        contact_velocity_residual_squared(k.w_nn, [r.get(2 * a), r.get(2 * a + 1)], u, k.mu, roll)
-            > threshold * threshold
+        (contact_velocity_residual_squared(k.w_nn, [r.get(2 * a), r.get(2 * a + 1)], u, k.mu, roll)
+            > threshold * threshold)
+            .then_some(g)
     };
     let local = |a: usize, ra: [f64; 2], wr: [f64; 2]| local_solve(p, &diag[a], a, ra, wr, opts.omega);
     let roll = |a: usize, r: &mut SharedSlice, v: &mut SharedSlice| update_rolling(p, op, opts.omega, a, r, v);
@@ -168,17 +169,13 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
             let Some(a) = b.list.pop_front() else { break };
             b.queued[a - b.first] = false;
             b.evaluations += 1;
-            if !above(records, a, &r, &v, threshold) {
-                continue;
-            }
-            update_shared(op, solves, a, &mut r, &mut v);
+            let Some(wr) = above(records, a, &r, &v, threshold) else { continue };
+            update_gathered(op, solves, a, wr, &mut r, &mut v);
             updates += 1;
-            for c in neighbours.of(a) {
-                match (b.first..b.end).contains(&c) {
-                    true => b.push(c),
-                    false => b.outbox.push(c),
-                }
-            }
+            neighbours.for_each(a, |c| match (b.first..b.end).contains(&c) {
+                true => b.push(c),
+                false => b.outbox.push(c),
+            });
         }
         b.updates += updates;
         updates
@@ -191,7 +188,7 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
             let shared = (SharedSlice::new(&mut r), SharedSlice::new(state.body_velocity_mut()));
             blocks.par_iter_mut().for_each(|b| {
                 for a in b.first..b.end {
-                    if above(&records, a, &shared.0, &shared.1, threshold) {
+                    if above(&records, a, &shared.0, &shared.1, threshold).is_some() {
                         b.push(a);
                     }
                 }
