@@ -345,6 +345,9 @@ pub(super) fn assemble(sim: &mut Simulation, step: usize) -> Result<Assembled, S
     if let Some(kept) = &recalled.colours {
         op.give_colouring(Colouring::repaired(&op, kept));
     }
+    if let Some(table) = recalled.neighbours {
+        op.give_neighbours(table);
+    }
     let mut r0 = recalled.impulses;
     let velocities = (assembled.v_begin.as_slice(), assembled.v_free.as_slice());
     let (problem, shift) = local_problem(world, op, &assembled.detected, velocities, (h, theta), &mut r0)
@@ -491,11 +494,12 @@ fn apply(
     // 7. Grains that left the periodic cell come back through the other side; the step's
     // contacts move with their grains, so that points and images stay beside them.
     let moved = sim.world.wrap_positions();
-    let colouring = problem.as_ref().and_then(|p| match &p.w {
-        Delassus::MatrixFree(op) => op.colouring_if_built().map(|c| (c, op.moving())),
+    let op = problem.as_ref().and_then(|p| match &p.w {
+        Delassus::MatrixFree(op) => Some(op),
         Delassus::Sparse(_) => None,
     });
-    sim.warm_start.remember(&detected, &impulses, colouring);
+    let built = op.map_or((None, None), |op| (op.colouring_if_built(), op.neighbours_if_built()));
+    sim.warm_start.remember(&detected, &impulses, built, op.map_or_else(Vec::new, |op| op.moving()));
     sim.contacts = match &problem {
         None => Vec::new(),
         Some(problem) => detected

@@ -1,10 +1,13 @@
 //! What a step hands to the next: each contact's impulse (the solve's warm start) and, when the
 //! solve coloured the contact graph (threaded or GPU Gauss–Seidel), each contact's colour, so
-//! the next colouring is repaired rather than rebuilt. Contacts are matched by (body,
-//! antagonist, feature).
+//! the next colouring is repaired rather than rebuilt, and the work list's neighbour table, reused
+//! while the contacts are the same. Contacts are matched by (body, antagonist, feature).
 
 use crate::detection::{Antagonist, DetectedContact};
+use std::sync::Arc;
+
 use crate::problem::colouring::Colouring;
+use crate::problem::matrix_free::Neighbours;
 
 pub(crate) type Key = (usize, Antagonist, u64);
 
@@ -16,6 +19,15 @@ pub(crate) type Entry = (Key, [f64; 3]);
 pub struct WarmStart {
     entries: Vec<Entry>,
     colours: Option<Colours>,
+    table: Option<Table>,
+}
+
+/// Last step's neighbour table, and which bodies could move then: it serves the next step when
+/// that step has the same contacts (the same keys in the same order) and the same bodies move.
+#[derive(Clone, Debug)]
+struct Table {
+    neighbours: Arc<Neighbours>,
+    moving: Vec<bool>,
 }
 
 /// Last step's colour of each entry, and which bodies could move then: kept colours stay
@@ -35,6 +47,8 @@ pub struct Recalled {
     /// Last step's colour of each contact (`None`: new), when last step's solve coloured its
     /// graph and the same bodies move.
     pub colours: Option<Vec<Option<u32>>>,
+    /// Last step's neighbour table, when its contacts were these and the same bodies move.
+    pub neighbours: Option<Arc<Neighbours>>,
 }
 
 /// `key` after body `removed` is removed: `None` when it involves that body, else with the
@@ -58,16 +72,18 @@ impl WarmStart {
             .filter_map(|(key, r)| key_without_body(key, k).map(|key| (key, r)))
             .collect();
         self.colours = None;
+        self.table = None;
     }
 
     /// Remembers `impulses` (2 per contact, then 1 per contact with rolling resistance) of
-    /// `contacts` (sorted by key, as detection returns them), and the colouring the solve used,
-    /// if any, with the bodies that could move.
+    /// `contacts` (sorted by key, as detection returns them), and the colouring and neighbour
+    /// table the solve used, if any, with the bodies that could move.
     pub fn remember(
         &mut self,
         contacts: &[DetectedContact],
         impulses: &[f64],
-        colouring: Option<(&Colouring, Vec<bool>)>,
+        (colouring, neighbours): (Option<&Colouring>, Option<Arc<Neighbours>>),
+        moving: Vec<bool>,
     ) {
         self.entries.clear();
         let nc = contacts.len();
@@ -76,7 +92,8 @@ impl WarmStart {
             contacts.iter().enumerate().map(|(a, c)| (c.key(), [impulses[2 * a], impulses[2 * a + 1], rolling(a)])),
         );
         debug_assert!(self.entries.windows(2).all(|w| w[0].0 <= w[1].0));
-        self.colours = colouring.map(|(c, moving)| Colours { of_entry: c.colour_of_each(), moving });
+        self.colours = colouring.map(|c| Colours { of_entry: c.colour_of_each(), moving: moving.clone() });
+        self.table = neighbours.map(|neighbours| Table { neighbours, moving });
     }
 
     /// What carries over to `contacts` (sorted by key); `moving` says which bodies can move now,
@@ -108,7 +125,12 @@ impl WarmStart {
                 e += 1;
             }
         }
-        Recalled { impulses, matched, colours: kept }
+        // Every contact matched an entry and every entry a contact: the same keys in the same
+        // order (the merge matches in increasing order), so the same bodies in each contact.
+        let same_contacts = matched == nc && self.entries.len() == nc;
+        let neighbours =
+            self.table.as_ref().filter(|t| same_contacts && t.moving == moving).map(|t| t.neighbours.clone());
+        Recalled { impulses, matched, colours: kept, neighbours }
     }
 
     /// The entries (key and impulse, sorted by key): what a checkpoint saves, with
@@ -129,7 +151,7 @@ impl WarmStart {
             debug_assert_eq!(of_entry.len(), entries.len());
             Colours { of_entry, moving }
         });
-        Self { entries, colours }
+        Self { entries, colours, table: None }
     }
 
     /// Contacts remembered.
@@ -140,5 +162,43 @@ impl WarmStart {
     /// Whether none is remembered.
     pub fn is_empty(&self) -> bool {
         self.entries.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec2;
+
+    use super::*;
+    use crate::problem::matrix_free::disks_in_a_row;
+
+    fn contact(i: usize, other: Antagonist) -> DetectedContact {
+        let (point, normal, image) = (DVec2::ZERO, DVec2::Y, DVec2::ZERO);
+        DetectedContact { i, other, feature: 0, point, normal, gap: 0.0, image }
+    }
+
+    /// Last step's neighbour table serves the next step only when its contacts are the same keys
+    /// in the same order and the same bodies move: a contact gone, one new, or a body pinned
+    /// since, and the table is built afresh.
+    #[test]
+    fn the_neighbour_table_carries_over_only_to_the_same_contacts_and_moving_bodies() {
+        let op = disks_in_a_row();
+        let table = op.neighbours();
+        assert!(table.tabled());
+        let table = op.neighbours_if_built().expect("built");
+        let contacts: Vec<DetectedContact> =
+            vec![contact(0, Antagonist::Body(1)), contact(0, Antagonist::Wall(0)), contact(1, Antagonist::Wall(0))];
+        let moving = vec![true, true];
+        let mut warm = WarmStart::default();
+        warm.remember(&contacts, &[0.0; 6], (None, Some(table.clone())), moving.clone());
+        let recalled = warm.recall(&contacts, &moving, false);
+        assert!(recalled.neighbours.is_some_and(|t| Arc::ptr_eq(&t, &table)));
+        assert!(warm.recall(&contacts[..2], &moving, false).neighbours.is_none(), "a contact gone");
+        let mut more = contacts.clone();
+        more.push(contact(1, Antagonist::Wall(1)));
+        assert!(warm.recall(&more, &moving, false).neighbours.is_none(), "a contact new");
+        assert!(warm.recall(&contacts, &[true, false], false).neighbours.is_none(), "a body pinned");
+        warm.forget_body(1);
+        assert!(warm.recall(&contacts, &moving, false).neighbours.is_none(), "a body removed");
     }
 }
