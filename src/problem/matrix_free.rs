@@ -586,12 +586,28 @@ impl MatrixFree {
     /// whose colouring ignores them never writes one place from two threads.
     #[inline]
     pub(crate) fn scatter_one<V: Velocities + ?Sized>(&self, a: usize, rn: f64, rt: f64, v: &mut V) {
-        let c = &self.rows[a];
+        self.scatter_rows(&self.rows[a], self.levers.get(a), rn, rt, v)
+    }
+
+    /// [`Self::scatter_one`] from a copy of the contact's rows and lever arms (`None` without
+    /// rotation), as [`Self::gather_rows`].
+    #[inline]
+    pub(crate) fn scatter_rows<V: Velocities + ?Sized>(
+        &self,
+        c: &ContactRows,
+        levers: Option<&Levers>,
+        rn: f64,
+        rt: f64,
+        v: &mut V,
+    ) {
         let n = c.n;
         let p =
             if self.dofs.friction { [rn * n[0] - rt * n[1], rn * n[1] + rt * n[0]] } else { [rn * n[0], rn * n[1]] };
         let s = self.dofs.per_body();
-        let g = if self.dofs.rotation { self.levers[a] } else { [0.0; 4] };
+        let g = match levers {
+            Some(g) if self.dofs.rotation => *g,
+            _ => [0.0; 4],
+        };
         let b = self.bodies[c.i];
         if b != Body::fixed() {
             v.add(s * c.i, b.inv_mass * p[0]);

@@ -236,10 +236,15 @@ pub(super) fn update_contact(
 /// solve against all others, relaxed by ω.
 #[inline]
 pub(super) fn local_solve(p: &ContactProblem, d: &Mat2, a: usize, ra: [f64; 2], wr: [f64; 2], omega: f64) -> [f64; 2] {
+    local_solve_of(d, [p.q[2 * a], p.q[2 * a + 1]], p.mu[a], ra, wr, omega)
+}
+
+/// [`local_solve`] from a copy of the contact's `q` and μ.
+#[inline]
+pub(super) fn local_solve_of(d: &Mat2, q: [f64; 2], mu: f64, ra: [f64; 2], wr: [f64; 2], omega: f64) -> [f64; 2] {
     // Velocity of contact a with its own impulse removed.
-    let q_local =
-        [p.q[2 * a] + wr[0] - (d[0] * ra[0] + d[1] * ra[1]), p.q[2 * a + 1] + wr[1] - (d[2] * ra[0] + d[3] * ra[1])];
-    let (rn, _) = solve_single_contact(d, q_local, p.mu[a]);
+    let q_local = [q[0] + wr[0] - (d[0] * ra[0] + d[1] * ra[1]), q[1] + wr[1] - (d[2] * ra[0] + d[3] * ra[1])];
+    let (rn, _) = solve_single_contact(d, q_local, mu);
     if omega == 1.0 {
         return rn;
     }
@@ -248,7 +253,7 @@ pub(super) fn local_solve(p: &ContactProblem, d: &Mat2, a: usize, ra: [f64; 2], 
     // extrapolates past the local answer and can leave it (a contact that opens would pull), so it
     // is projected back: projected SOR.
     if omega > 1.0 {
-        project_cone(relaxed, p.mu[a])
+        project_cone(relaxed, mu)
     } else {
         relaxed
     }
@@ -392,15 +397,21 @@ pub(super) fn update_gathered<L, G>(
     G: Fn(usize, &mut SharedSlice, &mut SharedSlice) + Sync,
 {
     let ra = [r.get(2 * a), r.get(2 * a + 1)];
-    let rn = local(a, ra, wr);
+    set_impulse(a, ra, local(a, ra, wr), r, |dn, dt| op.scatter_one(a, dn, dt, v));
+    if let Some(roll) = rolling {
+        roll(a, r, v);
+    }
+}
+
+/// Sets contact `a`'s impulse from `ra` to `rn` and moves the bodies' velocities by the change
+/// through `scatter` (nothing when it does not change).
+#[inline]
+pub(super) fn set_impulse(a: usize, ra: [f64; 2], rn: [f64; 2], r: &mut SharedSlice, scatter: impl FnOnce(f64, f64)) {
     let dr = [rn[0] - ra[0], rn[1] - ra[1]];
     if dr != [0.0, 0.0] {
         r.set(2 * a, rn[0]);
         r.set(2 * a + 1, rn[1]);
-        op.scatter_one(a, dr[0], dr[1], v);
-    }
-    if let Some(roll) = rolling {
-        roll(a, r, v);
+        scatter(dr[0], dr[1]);
     }
 }
 
