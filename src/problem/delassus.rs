@@ -1,6 +1,8 @@
 //! The one operator interface every solver uses: products with `W`, its diagonal 2×2 blocks,
 //! and the incremental row access a Gauss–Seidel sweep needs.
 
+use std::borrow::Cow;
+
 use super::{BlockSparse, Mat2, MatrixFree};
 
 /// The operator `W` of a contact problem, in one of two forms.
@@ -50,11 +52,12 @@ impl Delassus {
         }
     }
 
-    /// Every diagonal block.
-    pub fn diag_blocks(&self) -> Vec<Mat2> {
+    /// Every diagonal block: the matrix-free operator's own, built once (a step's problem reads
+    /// them in its check, its solve and its stopping test), else computed.
+    pub fn diag_blocks(&self) -> Cow<'_, [Mat2]> {
         match self {
-            Delassus::MatrixFree(m) => m.diag_blocks().to_vec(),
-            Delassus::Sparse(s) => (0..s.n_contacts()).map(|a| s.diag_block(a)).collect(),
+            Delassus::MatrixFree(m) => Cow::Borrowed(m.diag_blocks()),
+            Delassus::Sparse(s) => Cow::Owned((0..s.n_contacts()).map(|a| s.diag_block(a)).collect()),
         }
     }
 
@@ -98,8 +101,7 @@ impl Delassus {
         if let Delassus::Sparse(s) = self {
             s.validate()?;
         }
-        for a in 0..self.n_contacts() {
-            let d = self.diag_block(a);
+        for (a, d) in self.diag_blocks().iter().enumerate() {
             if !(d[0] > 0.0 && d[3] >= 0.0 && d.iter().all(|x| x.is_finite())) {
                 return Err(format!(
                     "diagonal block of contact {a} is [[{}, {}], [{}, {}]]: W_nn must be > 0 (a contact between two fixed bodies?)",

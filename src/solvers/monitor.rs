@@ -16,6 +16,7 @@ use crate::parallel::chunked_sum;
 use crate::problem::cone::project_box;
 use crate::problem::residual::problem_error;
 use crate::problem::{ContactProblem, Mat2};
+use std::borrow::Cow;
 use std::time::{Duration, Instant};
 
 /// The bookkeeping of one solve (see the module's description).
@@ -34,7 +35,7 @@ pub struct Monitor<'a> {
     tol_light: f64,
     history: Vec<HistoryPoint>,
     /// W's diagonal blocks, for the LMGC90 tests.
-    diag: Option<Vec<Mat2>>,
+    diag: Option<Cow<'a, [Mat2]>>,
     measure: JudgedMeasure,
     converged: bool,
     stop_reason: Option<(StopReason, String)>,

@@ -7,7 +7,7 @@ use std::fmt;
 
 use super::StopCriterion;
 use crate::problem::residual::{free_velocity_bound, velocity_error_scaled};
-use crate::problem::{ContactProblem, Mat2};
+use crate::problem::{ContactProblem, Delassus, Mat2};
 
 /// The f64 measure a criterion compares with `tol`: the natural-map error, or under a velocity
 /// test (`velocity`, `step-velocity`) the worst contact's residual in velocity units over the
@@ -15,21 +15,35 @@ use crate::problem::{ContactProblem, Mat2};
 /// between iterates, not a measure of one, and read the natural map here.
 #[derive(Clone, Debug)]
 pub struct JudgedMeasure {
+    /// The blocks (kept for an explicit `W` only: a matrix-free operator keeps its own) and the
+    /// scale.
     velocity_test: Option<(Vec<Mat2>, f64)>,
 }
 
 impl JudgedMeasure {
     /// The measure `criterion` judges `problem` by.
     pub fn new(problem: &ContactProblem, criterion: StopCriterion) -> Self {
-        let velocity_test =
-            criterion.is_velocity_test().then(|| (problem.w.diag_blocks(), velocity_scale(problem, criterion)));
+        let velocity_test = criterion.is_velocity_test().then(|| {
+            let kept = match &problem.w {
+                Delassus::MatrixFree(_) => Vec::new(),
+                Delassus::Sparse(_) => problem.w.diag_blocks().into_owned(),
+            };
+            (kept, velocity_scale(problem, criterion))
+        });
         Self { velocity_test }
     }
 
-    /// Of `r` with `u = W r + q`, whose natural-map error is `natural`.
+    /// Of `r` with `u = W r + q`, whose natural-map error is `natural` (`p` the problem the
+    /// measure was made for).
     pub fn of(&self, p: &ContactProblem, r: &[f64], u: &[f64], natural: f64) -> f64 {
         match &self.velocity_test {
-            Some((d, scale)) => velocity_error_scaled(d, &p.mu, &p.rolling, *scale, r, u),
+            Some((kept, scale)) => {
+                let d = match &p.w {
+                    Delassus::MatrixFree(op) => op.diag_blocks(),
+                    Delassus::Sparse(_) => kept,
+                };
+                velocity_error_scaled(d, &p.mu, &p.rolling, *scale, r, u)
+            }
             None => natural,
         }
     }
