@@ -301,7 +301,7 @@ impl<'a> ContactNeighbours<'a> {
     }
 
     /// `f` on each of contact `a`'s neighbours, in [`Self::of`]'s order: the table's row as a
-    /// plain loop (a work list's turn spends a tenth of its time stepping `of`'s iterator).
+    /// plain loop (stepping `of`'s iterator took 7–8 % of a 40,000-disk pile's step).
     #[inline]
     pub fn for_each(&self, a: usize, mut f: impl FnMut(usize)) {
         match self.table {

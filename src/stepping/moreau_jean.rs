@@ -498,8 +498,7 @@ fn apply(
         Delassus::MatrixFree(op) => Some(op),
         Delassus::Sparse(_) => None,
     });
-    let built = op.map_or((None, None), |op| (op.colouring_if_built(), op.neighbours_if_built()));
-    sim.warm_start.remember(&detected, &impulses, built, op.map_or_else(Vec::new, |op| op.moving()));
+    sim.warm_start.remember(&detected, &impulses, op);
     sim.contacts = match &problem {
         None => Vec::new(),
         Some(problem) => detected

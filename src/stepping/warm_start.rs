@@ -7,7 +7,7 @@ use crate::detection::{Antagonist, DetectedContact};
 use std::sync::Arc;
 
 use crate::problem::colouring::Colouring;
-use crate::problem::matrix_free::Neighbours;
+use crate::problem::matrix_free::{MatrixFree, Neighbours};
 
 pub(crate) type Key = (usize, Antagonist, u64);
 
@@ -18,23 +18,13 @@ pub(crate) type Entry = (Key, [f64; 3]);
 #[derive(Default, Clone, Debug)]
 pub struct WarmStart {
     entries: Vec<Entry>,
-    colours: Option<Colours>,
-    table: Option<Table>,
-}
-
-/// Last step's neighbour table, and which bodies could move then: it serves the next step when
-/// that step has the same contacts (the same keys in the same order) and the same bodies move.
-#[derive(Clone, Debug)]
-struct Table {
-    neighbours: Arc<Neighbours>,
-    moving: Vec<bool>,
-}
-
-/// Last step's colour of each entry, and which bodies could move then: kept colours stay
-/// proper only while the same bodies move.
-#[derive(Clone, Debug)]
-struct Colours {
-    of_entry: Vec<u32>,
+    /// Last step's colour of each entry, when its solve coloured the contact graph.
+    colours: Option<Vec<u32>>,
+    /// Last step's neighbour table, when its solve built one: it serves a step with the same
+    /// contacts (the same keys in the same order).
+    neighbours: Option<Arc<Neighbours>>,
+    /// Which bodies could move last step (empty when nothing above is kept): kept colours stay
+    /// proper, and a kept table right, only while the same bodies move.
     moving: Vec<bool>,
 }
 
@@ -72,19 +62,13 @@ impl WarmStart {
             .filter_map(|(key, r)| key_without_body(key, k).map(|key| (key, r)))
             .collect();
         self.colours = None;
-        self.table = None;
+        self.neighbours = None;
     }
 
     /// Remembers `impulses` (2 per contact, then 1 per contact with rolling resistance) of
     /// `contacts` (sorted by key, as detection returns them), and the colouring and neighbour
-    /// table the solve used, if any, with the bodies that could move.
-    pub fn remember(
-        &mut self,
-        contacts: &[DetectedContact],
-        impulses: &[f64],
-        (colouring, neighbours): (Option<&Colouring>, Option<Arc<Neighbours>>),
-        moving: Vec<bool>,
-    ) {
+    /// table the solve used on their operator `op`, if any, with the bodies that could move.
+    pub fn remember(&mut self, contacts: &[DetectedContact], impulses: &[f64], op: Option<&MatrixFree>) {
         self.entries.clear();
         let nc = contacts.len();
         let rolling = |a: usize| impulses.get(2 * nc + a).copied().unwrap_or(0.0);
@@ -92,8 +76,12 @@ impl WarmStart {
             contacts.iter().enumerate().map(|(a, c)| (c.key(), [impulses[2 * a], impulses[2 * a + 1], rolling(a)])),
         );
         debug_assert!(self.entries.windows(2).all(|w| w[0].0 <= w[1].0));
-        self.colours = colouring.map(|c| Colours { of_entry: c.colour_of_each(), moving: moving.clone() });
-        self.table = neighbours.map(|neighbours| Table { neighbours, moving });
+        self.colours = op.and_then(MatrixFree::colouring_if_built).map(Colouring::colour_of_each);
+        self.neighbours = op.and_then(MatrixFree::neighbours_if_built);
+        self.moving = match (op, &self.colours, &self.neighbours) {
+            (Some(op), Some(_), _) | (Some(op), _, Some(_)) => op.moving(),
+            _ => Vec::new(),
+        };
     }
 
     /// What carries over to `contacts` (sorted by key); `moving` says which bodies can move now,
@@ -101,7 +89,8 @@ impl WarmStart {
     pub fn recall(&self, contacts: &[DetectedContact], moving: &[bool], rolling: bool) -> Recalled {
         let nc = contacts.len();
         let mut impulses = vec![0.0; if rolling { 3 * nc } else { 2 * nc }];
-        let colours = self.colours.as_ref().filter(|c| c.moving == moving);
+        let same_bodies = self.moving == moving;
+        let colours = self.colours.as_ref().filter(|_| same_bodies);
         let mut kept = colours.map(|_| vec![None; contacts.len()]);
         let mut matched = 0;
         // Both lists are sorted by key: one merge.
@@ -118,7 +107,7 @@ impl WarmStart {
                     impulses[2 * nc + a] = self.entries[e].1[2];
                 }
                 if let (Some(kept), Some(colours)) = (kept.as_mut(), colours) {
-                    kept[a] = Some(colours.of_entry[e]);
+                    kept[a] = Some(colours[e]);
                 }
                 matched += 1;
                 // A key seen twice (two features alike) pairs up in order, never shares a colour.
@@ -128,8 +117,7 @@ impl WarmStart {
         // Every contact matched an entry and every entry a contact: the same keys in the same
         // order (the merge matches in increasing order), so the same bodies in each contact.
         let same_contacts = matched == nc && self.entries.len() == nc;
-        let neighbours =
-            self.table.as_ref().filter(|t| same_contacts && t.moving == moving).map(|t| t.neighbours.clone());
+        let neighbours = self.neighbours.clone().filter(|_| same_contacts && same_bodies);
         Recalled { impulses, matched, colours: kept, neighbours }
     }
 
@@ -141,17 +129,20 @@ impl WarmStart {
 
     /// Each entry's colour and the moving mask they were given with, if kept.
     pub(crate) fn colours(&self) -> Option<(&[u32], &[bool])> {
-        self.colours.as_ref().map(|c| (c.of_entry.as_slice(), c.moving.as_slice()))
+        self.colours.as_ref().map(|c| (c.as_slice(), self.moving.as_slice()))
     }
 
     /// The warm start [`Self::entries`] and [`Self::colours`] describe (entries sorted by key; one colour per entry).
     pub(crate) fn from_parts(entries: Vec<Entry>, colours: Option<(Vec<u32>, Vec<bool>)>) -> Self {
         debug_assert!(entries.windows(2).all(|w| w[0].0 <= w[1].0));
-        let colours = colours.map(|(of_entry, moving)| {
-            debug_assert_eq!(of_entry.len(), entries.len());
-            Colours { of_entry, moving }
-        });
-        Self { entries, colours, table: None }
+        let (colours, moving) = match colours {
+            Some((of_entry, moving)) => {
+                debug_assert_eq!(of_entry.len(), entries.len());
+                (Some(of_entry), moving)
+            }
+            None => (None, Vec::new()),
+        };
+        Self { entries, colours, neighbours: None, moving }
     }
 
     /// Contacts remembered.
@@ -183,21 +174,24 @@ mod tests {
     #[test]
     fn the_neighbour_table_carries_over_only_to_the_same_contacts_and_moving_bodies() {
         let op = disks_in_a_row();
-        let table = op.neighbours();
-        assert!(table.tabled());
-        let table = op.neighbours_if_built().expect("built");
         let contacts: Vec<DetectedContact> =
             vec![contact(0, Antagonist::Body(1)), contact(0, Antagonist::Wall(0)), contact(1, Antagonist::Wall(0))];
-        let moving = vec![true, true];
+        let moving = op.moving();
         let mut warm = WarmStart::default();
-        warm.remember(&contacts, &[0.0; 6], (None, Some(table.clone())), moving.clone());
+        warm.remember(&contacts, &[0.0; 6], Some(&op));
+        assert!(warm.recall(&contacts, &moving, false).neighbours.is_none(), "no table built, none kept");
+        assert!(op.neighbours().tabled());
+        let table = op.neighbours_if_built().expect("built");
+        warm.remember(&contacts, &[0.0; 6], Some(&op));
         let recalled = warm.recall(&contacts, &moving, false);
         assert!(recalled.neighbours.is_some_and(|t| Arc::ptr_eq(&t, &table)));
         assert!(warm.recall(&contacts[..2], &moving, false).neighbours.is_none(), "a contact gone");
         let mut more = contacts.clone();
         more.push(contact(1, Antagonist::Wall(1)));
         assert!(warm.recall(&more, &moving, false).neighbours.is_none(), "a contact new");
-        assert!(warm.recall(&contacts, &[true, false], false).neighbours.is_none(), "a body pinned");
+        let mut pinned = moving.clone();
+        pinned[1] = false;
+        assert!(warm.recall(&contacts, &pinned, false).neighbours.is_none(), "a body pinned");
         warm.forget_body(1);
         assert!(warm.recall(&contacts, &moving, false).neighbours.is_none(), "a body removed");
     }
