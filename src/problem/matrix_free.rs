@@ -125,6 +125,12 @@ impl SharedSlice {
 }
 
 impl SharedSlice {
+    /// Element `k`'s address, for a prefetch hint (not to be read through).
+    #[inline]
+    pub(crate) fn address(&self, k: usize) -> *const f64 {
+        self.ptr.wrapping_add(k)
+    }
+
     #[inline]
     pub(crate) fn set(&mut self, k: usize, x: f64) {
         debug_assert!(k < self.len);
