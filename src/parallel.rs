@@ -28,6 +28,16 @@ pub fn chunked_sum(n: usize, term: impl Fn(usize) -> f64 + Sync) -> f64 {
     }
 }
 
+/// `[f(0), …, f(n − 1)]`, on threads when `n` is large: each item its own, in order, so the
+/// same values for any thread count.
+pub fn map_indices<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync + Send) -> Vec<T> {
+    if parallel(n) {
+        (0..n).into_par_iter().with_min_len(CHUNK).map(f).collect()
+    } else {
+        (0..n).map(f).collect()
+    }
+}
+
 /// `Σ_{lo≤k<hi} term(k)` in four interleaved partial sums (k mod 4), added at the end: four
 /// independent chains of additions instead of one keep a long sum from waiting on each add.
 #[inline]

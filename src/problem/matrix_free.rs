@@ -10,7 +10,7 @@ use rayon::prelude::*;
 
 use super::colouring::Colouring;
 use super::{BlockSparse, Mat2};
-use crate::parallel::{parallel, CHUNK};
+use crate::parallel::{map_indices, parallel, CHUNK};
 
 /// A rigid body's inverse mass and inverse inertia. A static body (a wall) has both zero.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -732,14 +732,7 @@ impl MatrixFree {
     /// diagonal is set to `W_nn` so that block inverses used by preconditioners stay defined.
     /// Every diagonal block, built once (on threads for a large problem: the same values).
     pub fn diag_blocks(&self) -> &[Mat2] {
-        self.diag.get_or_init(|| {
-            let n = self.n_contacts();
-            if parallel(n) {
-                (0..n).into_par_iter().with_min_len(CHUNK).map(|a| self.diag_block(a)).collect()
-            } else {
-                (0..n).map(|a| self.diag_block(a)).collect()
-            }
-        })
+        self.diag.get_or_init(|| map_indices(self.n_contacts(), |a| self.diag_block(a)))
     }
 
     /// The diagonal block `W_aa` of contact `a`.

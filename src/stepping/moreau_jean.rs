@@ -22,6 +22,7 @@ use super::checks::check_state;
 use super::projection::{end_of_step_gaps, project_positions, targets};
 use super::simulation::{ContactState, Simulation, StepError, StepReport};
 use crate::detection::{Antagonist, Configuration, DetectedContact, Detector};
+use crate::parallel::map_indices;
 use crate::problem::colouring::Colouring;
 use crate::problem::cone::status_of;
 use crate::problem::matrix_free::Dofs;
@@ -501,24 +502,21 @@ fn apply(
     sim.warm_start.remember(&detected, &impulses, op);
     sim.contacts = match &problem {
         None => Vec::new(),
-        Some(problem) => detected
-            .iter()
-            .enumerate()
-            .map(|(a, c)| {
-                let imp = [impulses[2 * a], impulses[2 * a + 1]];
-                let shifted = [imp[0] + shift.get(2 * a).copied().unwrap_or(0.0), imp[1]];
-                let mut contact = *c;
-                if let Some(&dx) = moved.get(c.i) {
-                    let dj = match c.other {
-                        Antagonist::Body(j) => moved[j],
-                        Antagonist::Wall(_) => dx,
-                    };
-                    contact.point.x += dx;
-                    contact.image.x += dx - dj;
-                }
-                ContactState { contact, impulse: imp, status: status_of(shifted, problem.mu[a]) }
-            })
-            .collect(),
+        Some(problem) => map_indices(detected.len(), |a| {
+            let c = &detected[a];
+            let imp = [impulses[2 * a], impulses[2 * a + 1]];
+            let shifted = [imp[0] + shift.get(2 * a).copied().unwrap_or(0.0), imp[1]];
+            let mut contact = *c;
+            if let Some(&dx) = moved.get(c.i) {
+                let dj = match c.other {
+                    Antagonist::Body(j) => moved[j],
+                    Antagonist::Wall(_) => dx,
+                };
+                contact.point.x += dx;
+                contact.image.x += dx - dj;
+            }
+            ContactState { contact, impulse: imp, status: status_of(shifted, problem.mu[a]) }
+        }),
     };
     if sim.keep_problem {
         sim.last_problem = problem;

@@ -8,6 +8,7 @@ use glam::DVec2;
 
 use crate::backend::Backend;
 use crate::detection::{Antagonist, DetectedContact};
+use crate::parallel::map_indices;
 use crate::problem::{ContactProblem, Delassus, MatrixFree};
 use crate::solvers::{SolverKind, SolverOptions, StopCriterion};
 use crate::world::{Wall, World};
@@ -53,16 +54,14 @@ pub(super) fn end_of_step_gaps(
             dx[s * k + 2] = b.angle[k] - start_angle[k];
         }
     }
-    let mut dg = vec![0.0; 2 * contacts.len()];
-    op.contact_velocities(&dx, &mut dg);
-    contacts
-        .iter()
-        .enumerate()
-        .map(|(a, c)| match c.other {
-            Antagonist::Wall(w) => c.gap + dg[2 * a] - c.normal.dot(h * walls_at_start[w].velocity_at(c.point)),
-            Antagonist::Body(_) => c.gap + dg[2 * a],
-        })
-        .collect()
+    map_indices(contacts.len(), |a| {
+        let c = &contacts[a];
+        let moved = c.gap + op.gather_one(a, dx.as_slice())[0];
+        match c.other {
+            Antagonist::Wall(w) => moved - c.normal.dot(h * walls_at_start[w].velocity_at(c.point)),
+            Antagonist::Body(_) => moved,
+        }
+    })
 }
 
 /// Moves bodies back along `M⁻¹ Bᵀ p` until no contact ends below its target gap (p ≥ 0 the
