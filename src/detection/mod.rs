@@ -303,4 +303,52 @@ mod tests {
         assert!(contacts_seen > 40 * 100, "{contacts_seen} contacts");
         assert!(reuses > 20 && searches >= 3, "{searches} searches, {reuses} reuses");
     }
+
+    /// Detection on 1 and 2 threads gives exactly every pair and wall tested one by one, then
+    /// sorted by key (the order the solvers and the warm start's merge rely on): disks and
+    /// pentagons above a floor and between two walls, enough of them for the threaded path.
+    #[test]
+    fn threaded_detection_gives_every_contact_in_key_order() {
+        let mut rng = rand::rngs::SmallRng::seed_from_u64(29);
+        let mut bodies = Bodies::new(true);
+        let n = 2 * crate::parallel::PARALLEL_MIN;
+        for k in 0..n {
+            let c = DVec2::new(rng.gen_range(0.0..60.0), rng.gen_range(0.0..60.0));
+            let r = rng.gen_range(0.3..0.5);
+            let spec = match k % 4 {
+                0 => BodySpec::regular_polygon(c, r, 5, rng.gen_range(0.0..1.0), 0),
+                _ => BodySpec::disk(c, r, 0),
+            };
+            bodies.add(&spec, 1.0).unwrap();
+        }
+        let walls = [
+            Wall::segment(DVec2::new(0.0, 0.0), DVec2::new(60.0, 0.0), 0),
+            Wall::segment(DVec2::new(0.0, 60.0), DVec2::new(0.0, 0.0), 0),
+            Wall::segment(DVec2::new(60.0, 0.0), DVec2::new(60.0, 60.0), 0),
+        ];
+        let (alert, reach) = (0.05, vec![0.0; n]);
+        let config = Configuration { position: &bodies.position, angle: &bodies.angle, periodic: None };
+        let mut expected = Vec::new();
+        for i in 0..n {
+            for j in i + 1..n {
+                narrow_phase::body_body(&bodies, &config, (i, j, DVec2::ZERO), alert, &mut expected);
+            }
+        }
+        for (w, wall) in walls.iter().enumerate() {
+            for k in 0..n {
+                narrow_phase::body_wall(&bodies, &config, k, w, wall, alert, &mut expected);
+            }
+        }
+        expected.sort_by_key(|a| a.key());
+        assert!(expected.iter().any(|c| matches!(c.other, Antagonist::Wall(_))));
+        assert!(expected.len() > crate::parallel::PARALLEL_MIN, "{} contacts", expected.len());
+        for threads in [1, 2] {
+            let found = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| Detector::default().detect(&bodies, &config, &walls, alert, &reach, &[0.0; 3]));
+            assert_eq!(found, expected, "{threads} thread(s)");
+        }
+    }
 }
