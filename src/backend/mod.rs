@@ -612,6 +612,7 @@ fn joined(kind: SolverKind, solves: Vec<(Vec<SolvePart>, String, SolveReport)>) 
         gpu_checks,
         r: last.r,
         u: last.u,
+        body_velocity: last.body_velocity,
         iterates: Vec::new(),
     }
 }

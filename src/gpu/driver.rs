@@ -223,6 +223,7 @@ pub fn iterate(
         gpu_checks: checks,
         r,
         u,
+        body_velocity: None,
         iterates: Vec::new(),
     })
 }

@@ -185,6 +185,21 @@ impl ContactProblem {
         }
     }
 
+    /// [`Self::velocity_into`], returning the bodies' velocities `M⁻¹ Bᵀ r` the product went
+    /// through when `W` is matrix-free (the same bits).
+    pub fn velocity_keeping_bodies(&self, r: &[f64], u: &mut [f64]) -> Option<Vec<f64>> {
+        let Delassus::MatrixFree(op) = &self.w else {
+            self.velocity_into(r, u);
+            return None;
+        };
+        let v = op.body_velocities(r);
+        op.contact_velocities(&v, u);
+        for (ui, qi) in u.iter_mut().zip(&self.q) {
+            *ui += qi;
+        }
+        Some(v)
+    }
+
     /// Whether every contact is frictionless, so solvers may drop the tangential rows.
     pub fn is_frictionless(&self) -> bool {
         self.mu.iter().all(|&m| m == 0.0)

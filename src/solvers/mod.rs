@@ -410,6 +410,10 @@ pub struct SolveReport {
     pub r: Vec<f64>,
     /// The velocities `u = W r + q` of the returned impulses.
     pub u: Vec<f64>,
+    /// The bodies' velocities `M⁻¹ Bᵀ r` of the returned impulses, when the solve's last product
+    /// (matrix-free) was of them: the step's update then needs no product of its own.
+    #[serde(skip)]
+    pub body_velocity: Option<Vec<f64>>,
     /// The iterates at the history points, when `keep_iterates` was asked for.
     #[serde(skip)]
     pub iterates: Vec<Vec<f64>>,

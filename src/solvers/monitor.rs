@@ -46,6 +46,9 @@ pub struct Monitor<'a> {
     /// `scratch_u = W r + q` of the iterate of this iteration, with its (error, judged): the
     /// final report of a solve stopped right after a check needs no product of its own.
     scratch_check: Option<(usize, f64, f64)>,
+    /// `M⁻¹ Bᵀ r` of that product, on a matrix-free problem: handed to the caller with the
+    /// iterate returned ([`SolveReport::body_velocity`]).
+    scratch_body_velocity: Option<Vec<f64>>,
     iterates: Vec<Vec<f64>>,
     /// The checked iterate with the smallest judged error, returned if the solve does not converge.
     best: Option<(f64, Vec<f64>)>,
@@ -77,6 +80,7 @@ impl<'a> Monitor<'a> {
             products_seen: 0,
             scratch_u: vec![0.0; r0.len()],
             scratch_check: None,
+            scratch_body_velocity: None,
             iterates: Vec::new(),
             best: None,
             notes: Vec::new(),
@@ -234,7 +238,7 @@ impl<'a> Monitor<'a> {
         let u = match u {
             Some(u) => u,
             None => {
-                self.problem.velocity_into(r, &mut uu);
+                self.scratch_body_velocity = self.problem.velocity_keeping_bodies(r, &mut uu);
                 if !excluded {
                     self.w_products += 1;
                 }
@@ -262,8 +266,10 @@ impl<'a> Monitor<'a> {
         let seconds = self.elapsed();
         let lmgc = !self.opts.criterion.judges_one_iterate();
         // The last check's product, when it was of the iterate returned (the same bits).
+        let mut body_velocity = None;
         let (mut u, mut error, mut judged) = match self.scratch_check.take() {
             Some((iteration, error, judged)) if iteration == self.iteration && r == self.r_prev => {
+                body_velocity = self.scratch_body_velocity.take();
                 (std::mem::take(&mut self.scratch_u), error, judged)
             }
             _ => {
@@ -285,6 +291,7 @@ impl<'a> Monitor<'a> {
                 let kept_judged = self.judged(&kept, &kept_u, kept_error);
                 if judged.is_nan() || kept_judged < judged {
                     (r, u, error, judged) = (kept, kept_u, kept_error, kept_judged);
+                    body_velocity = None;
                 }
             }
         }
@@ -320,7 +327,39 @@ impl<'a> Monitor<'a> {
             gpu_checks: Default::default(),
             r,
             u,
+            body_velocity,
             iterates: self.iterates,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{solve, Ordering, SolverKind, SolverOptions};
+    use crate::problem::generate::lattice_packing;
+    use crate::problem::Delassus;
+
+    /// The bodies' velocities a solve hands on with its answer (a step then makes no product of
+    /// its own) are those of the impulses returned, bit for bit. A converged NLGS solve, in
+    /// order or on a work list, hands them on; the colour ordering, which sums over the contacts
+    /// renumbered, hands none.
+    #[test]
+    fn handed_body_velocities_are_those_of_the_returned_impulses() {
+        let p = lattice_packing(12, 8, 0.3, 4);
+        let Delassus::MatrixFree(op) = &p.w else { panic!("a matrix-free problem") };
+        for ordering in [Ordering::Forward, Ordering::Worklist, Ordering::Colours] {
+            for (tol, max_iter) in [(1e-6, 5000), (1e-14, 30)] {
+                let opts = SolverOptions { tol, max_iter, ordering, ..Default::default() };
+                let report = solve(&p, SolverKind::Nlgs, &opts, None);
+                let case = format!("{ordering:?}, tol {tol:e}, converged {}", report.converged);
+                match &report.body_velocity {
+                    Some(v) => assert!(*v == op.body_velocities(&report.r), "{case}"),
+                    None => assert!(ordering == Ordering::Colours || !report.converged, "{case}: none handed on"),
+                }
+                if ordering == Ordering::Colours {
+                    assert!(report.body_velocity.is_none(), "{case}");
+                }
+            }
         }
     }
 }

@@ -103,6 +103,8 @@ fn solve_coloured(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, r: 
     let mut report = solve_on(&renumbered, opts, renumber(r, &order), Some(Sweep::Colours(&ranges)));
     number_back(&mut report.r, &order);
     number_back(&mut report.u, &order);
+    // Summed over the renumbered contacts: not the bits of the original order.
+    report.body_velocity = None;
     report.iterates.iter_mut().for_each(|x| number_back(x, &order));
     report
 }

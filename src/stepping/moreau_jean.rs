@@ -435,6 +435,8 @@ fn apply(
         report.gpu_checks = solved.gpu_checks;
         report.stop_reason = solved.stop_reason.clone();
         impulses = solved.r;
+        // The solve's last product's `M⁻¹ Bᵀ r`, when it was of these impulses (unshifted).
+        let kept = solved.body_velocity.filter(|_| shift.is_empty());
         if impulses.iter().any(|x| !x.is_finite()) {
             return Err(StepError::Diverged {
                 step,
@@ -445,7 +447,7 @@ fn apply(
             *r -= c;
         }
         let Delassus::MatrixFree(op) = &local.w else { unreachable!("the step builds a matrix-free problem") };
-        for (v, d) in v_end.iter_mut().zip(op.body_velocities(&impulses)) {
+        for (v, d) in v_end.iter_mut().zip(kept.unwrap_or_else(|| op.body_velocities(&impulses))) {
             *v += d;
         }
     }
