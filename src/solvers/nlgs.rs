@@ -31,7 +31,7 @@ use crate::parallel::parallel;
 use crate::problem::colouring::Colouring;
 use crate::problem::cone::{project_cone, solve_single_contact};
 use crate::problem::delassus::SweepState;
-use crate::problem::matrix_free::{SharedSlice, Velocities};
+use crate::problem::matrix_free::{BlockColours, SharedSlice, Velocities};
 use crate::problem::{ContactProblem, Delassus, Mat2, MatrixFree};
 use rand::{rngs::SmallRng, seq::SliceRandom, SeedableRng};
 
@@ -48,7 +48,7 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveRepo
             solve_coloured(p, op, &SolverOptions { ordering: Ordering::Forward, ..opts.clone() }, &r)
         }
         Delassus::MatrixFree(op) if opts.ordering == Ordering::Forward && parallel(p.n_contacts()) => {
-            match block_colours(op, p.n_contacts()) {
+            match op.block_colours_with(|op| block_colours(op, p.n_contacts())) {
                 Some(blocks) => solve_on(p, opts, r, Some(Sweep::Blocks(&blocks))),
                 None => solve_coloured(p, op, opts, &r),
             }
@@ -332,7 +332,7 @@ const MIN_BLOCKS_PER_COLOUR: usize = 2;
 /// Cuts the contacts, in their order, into 16 blocks (of 1,024 contacts at least)
 /// and colours the blocks so that two of one colour share no moving body; `None` when that leaves
 /// too few blocks a colour to share out (grains numbered in no spatial order).
-pub fn block_colours(op: &MatrixFree, nc: usize) -> Option<Vec<Vec<(usize, usize)>>> {
+pub fn block_colours(op: &MatrixFree, nc: usize) -> Option<BlockColours> {
     let block_size = nc.div_ceil(BLOCKS).max(MIN_BLOCK);
     let blocks = nc.div_ceil(block_size);
     // The blocks each body touches, then each block's neighbours, as bit sets (16 blocks at most).

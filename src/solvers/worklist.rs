@@ -31,6 +31,7 @@
 //! the threshold and starts again.
 
 use std::collections::VecDeque;
+use std::sync::Arc;
 
 use rayon::prelude::*;
 
@@ -158,7 +159,7 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
     let local = |a: usize, ra: [f64; 2], wr: [f64; 2]| local_solve(p, &diag[a], a, ra, wr, opts.omega);
     let roll = |a: usize, r: &mut SharedSlice, v: &mut SharedSlice| update_rolling(p, op, opts.omega, a, r, v);
     let solves = (&local, rolling.then_some(&roll));
-    let colours = block_colours(op, nc).unwrap_or_else(|| vec![vec![(0, nc)]]);
+    let colours = op.block_colours_with(|op| block_colours(op, nc)).unwrap_or_else(|| Arc::new(vec![vec![(0, nc)]]));
     let mut blocks: Vec<Block> = colours
         .iter()
         .enumerate()

@@ -349,6 +349,9 @@ pub(super) fn assemble(sim: &mut Simulation, step: usize) -> Result<Assembled, S
     if let Some(table) = recalled.neighbours {
         op.give_neighbours(table);
     }
+    if let Some(blocks) = recalled.block_colours {
+        op.give_block_colours(blocks);
+    }
     let mut r0 = recalled.impulses;
     let velocities = (assembled.v_begin.as_slice(), assembled.v_free.as_slice());
     let (problem, shift) = local_problem(world, op, &assembled.detected, velocities, (h, theta), &mut r0)

@@ -1,13 +1,13 @@
 //! What a step hands to the next: each contact's impulse (the solve's warm start) and, when the
 //! solve coloured the contact graph (threaded or GPU Gauss–Seidel), each contact's colour, so
-//! the next colouring is repaired rather than rebuilt, and the work list's neighbour table, reused
-//! while the contacts are the same. Contacts are matched by (body, antagonist, feature).
+//! the next colouring is repaired rather than rebuilt, and the work list's neighbour table and
+//! the threaded sweeps' blocks by colour, reused while the contacts are the same. Contacts are matched by (body, antagonist, feature).
 
 use crate::detection::{Antagonist, DetectedContact};
 use std::sync::Arc;
 
 use crate::problem::colouring::Colouring;
-use crate::problem::matrix_free::{MatrixFree, Neighbours};
+use crate::problem::matrix_free::{BlockColours, MatrixFree, Neighbours};
 
 pub(crate) type Key = (usize, Antagonist, u64);
 
@@ -23,6 +23,9 @@ pub struct WarmStart {
     /// Last step's neighbour table, when its solve built one: it serves a step with the same
     /// contacts (the same keys in the same order).
     neighbours: Option<Arc<Neighbours>>,
+    /// Last step's blocks by colour for the threaded sweeps, when its solve cut them: they serve
+    /// a step with the same contacts, as the table does.
+    block_colours: Option<Arc<BlockColours>>,
     /// Which bodies could move last step (empty when nothing above is kept): kept colours stay
     /// proper, and a kept table right, only while the same bodies move.
     moving: Vec<bool>,
@@ -39,6 +42,8 @@ pub struct Recalled {
     pub colours: Option<Vec<Option<u32>>>,
     /// Last step's neighbour table, when its contacts were these and the same bodies move.
     pub neighbours: Option<Arc<Neighbours>>,
+    /// Last step's blocks by colour, under the same conditions.
+    pub block_colours: Option<Arc<BlockColours>>,
 }
 
 /// `key` after body `removed` is removed: `None` when it involves that body, else with the
@@ -63,6 +68,7 @@ impl WarmStart {
             .collect();
         self.colours = None;
         self.neighbours = None;
+        self.block_colours = None;
     }
 
     /// Remembers `impulses` (2 per contact, then 1 per contact with rolling resistance) of
@@ -78,8 +84,10 @@ impl WarmStart {
         debug_assert!(self.entries.windows(2).all(|w| w[0].0 <= w[1].0));
         self.colours = op.and_then(MatrixFree::colouring_if_built).map(Colouring::colour_of_each);
         self.neighbours = op.and_then(MatrixFree::neighbours_if_built);
-        self.moving = match (op, &self.colours, &self.neighbours) {
-            (Some(op), Some(_), _) | (Some(op), _, Some(_)) => op.moving(),
+        self.block_colours = op.and_then(MatrixFree::block_colours_if_built);
+        let kept = self.colours.is_some() || self.neighbours.is_some() || self.block_colours.is_some();
+        self.moving = match op {
+            Some(op) if kept => op.moving(),
             _ => Vec::new(),
         };
     }
@@ -118,7 +126,8 @@ impl WarmStart {
         // order (the merge matches in increasing order), so the same bodies in each contact.
         let same_contacts = matched == nc && self.entries.len() == nc;
         let neighbours = self.neighbours.clone().filter(|_| same_contacts && same_bodies);
-        Recalled { impulses, matched, colours: kept, neighbours }
+        let block_colours = self.block_colours.clone().filter(|_| same_contacts && same_bodies);
+        Recalled { impulses, matched, colours: kept, neighbours, block_colours }
     }
 
     /// The entries (key and impulse, sorted by key): what a checkpoint saves, with
@@ -142,7 +151,7 @@ impl WarmStart {
             }
             None => (None, Vec::new()),
         };
-        Self { entries, colours, neighbours: None, moving }
+        Self { entries, colours, neighbours: None, block_colours: None, moving }
     }
 
     /// Contacts remembered.
@@ -168,11 +177,11 @@ mod tests {
         DetectedContact { i, other, feature: 0, point, normal, gap: 0.0, image }
     }
 
-    /// Last step's neighbour table serves the next step only when its contacts are the same keys
-    /// in the same order and the same bodies move: a contact gone, one new, or a body pinned
-    /// since, and the table is built afresh.
+    /// Last step's neighbour table and blocks by colour serve the next step only when its
+    /// contacts are the same keys in the same order and the same bodies move: a contact gone,
+    /// one new, or a body pinned since, and they are built afresh.
     #[test]
-    fn the_neighbour_table_carries_over_only_to_the_same_contacts_and_moving_bodies() {
+    fn the_neighbour_table_and_blocks_carry_over_only_to_the_same_contacts_and_moving_bodies() {
         let op = disks_in_a_row();
         let contacts: Vec<DetectedContact> =
             vec![contact(0, Antagonist::Body(1)), contact(0, Antagonist::Wall(0)), contact(1, Antagonist::Wall(0))];
@@ -182,16 +191,20 @@ mod tests {
         assert!(warm.recall(&contacts, &moving, false).neighbours.is_none(), "no table built, none kept");
         assert!(op.neighbours().tabled());
         let table = op.neighbours_if_built().expect("built");
+        let blocks = op.block_colours_with(|_| Some(vec![vec![(0, 3)]])).expect("cut");
         warm.remember(&contacts, &[0.0; 6], Some(&op));
         let recalled = warm.recall(&contacts, &moving, false);
         assert!(recalled.neighbours.is_some_and(|t| Arc::ptr_eq(&t, &table)));
+        assert!(recalled.block_colours.is_some_and(|b| Arc::ptr_eq(&b, &blocks)));
         assert!(warm.recall(&contacts[..2], &moving, false).neighbours.is_none(), "a contact gone");
+        assert!(warm.recall(&contacts[..2], &moving, false).block_colours.is_none(), "a contact gone");
         let mut more = contacts.clone();
         more.push(contact(1, Antagonist::Wall(1)));
         assert!(warm.recall(&more, &moving, false).neighbours.is_none(), "a contact new");
         let mut pinned = moving.clone();
         pinned[1] = false;
         assert!(warm.recall(&contacts, &pinned, false).neighbours.is_none(), "a body pinned");
+        assert!(warm.recall(&contacts, &pinned, false).block_colours.is_none(), "a body pinned");
         warm.forget_body(1);
         assert!(warm.recall(&contacts, &moving, false).neighbours.is_none(), "a body removed");
     }
