@@ -179,25 +179,27 @@ impl ContactProblem {
 
     /// `u = W r + q` into a caller's buffer (one operator product).
     pub fn velocity_into(&self, r: &[f64], u: &mut [f64]) {
-        self.w.apply(r, u);
-        for (ui, qi) in u.iter_mut().zip(&self.q) {
-            *ui += qi;
-        }
+        self.velocity_keeping_bodies(r, u);
     }
 
     /// [`Self::velocity_into`], returning the bodies' velocities `M⁻¹ Bᵀ r` the product went
-    /// through when `W` is matrix-free (the same bits).
+    /// through when `W` is matrix-free (its product is that scatter and a gather: the same bits).
     pub fn velocity_keeping_bodies(&self, r: &[f64], u: &mut [f64]) -> Option<Vec<f64>> {
-        let Delassus::MatrixFree(op) = &self.w else {
-            self.velocity_into(r, u);
-            return None;
+        let bodies = match &self.w {
+            Delassus::MatrixFree(op) => {
+                let v = op.body_velocities(r);
+                op.contact_velocities(&v, u);
+                Some(v)
+            }
+            Delassus::Sparse(s) => {
+                s.apply(r, u);
+                None
+            }
         };
-        let v = op.body_velocities(r);
-        op.contact_velocities(&v, u);
         for (ui, qi) in u.iter_mut().zip(&self.q) {
             *ui += qi;
         }
-        Some(v)
+        bodies
     }
 
     /// Whether every contact is frictionless, so solvers may drop the tangential rows.

@@ -34,6 +34,7 @@ use crate::problem::delassus::SweepState;
 use crate::problem::matrix_free::{BlockColours, SharedSlice, Velocities};
 use crate::problem::{ContactProblem, Delassus, Mat2, MatrixFree};
 use rand::{rngs::SmallRng, seq::SliceRandom, SeedableRng};
+use std::sync::Arc;
 
 /// Contacts per task in a threaded colour.
 const MIN_TASK: usize = 256;
@@ -48,7 +49,7 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveRepo
             solve_coloured(p, op, &SolverOptions { ordering: Ordering::Forward, ..opts.clone() }, &r)
         }
         Delassus::MatrixFree(op) if opts.ordering == Ordering::Forward && parallel(p.n_contacts()) => {
-            match op.block_colours_with(|op| block_colours(op, p.n_contacts())) {
+            match kept_block_colours(op) {
                 Some(blocks) => solve_on(p, opts, r, Some(Sweep::Blocks(&blocks))),
                 None => solve_coloured(p, op, opts, &r),
             }
@@ -362,6 +363,12 @@ pub fn block_colours(op: &MatrixFree, nc: usize) -> Option<BlockColours> {
         by_colour[c].push((k * block_size, ((k + 1) * block_size).min(nc)));
     }
     Some(by_colour)
+}
+
+/// [`block_colours`] of the operator's contacts, cut once per operator (or handed in with last
+/// step's neighbour table).
+pub(super) fn kept_block_colours(op: &MatrixFree) -> Option<Arc<BlockColours>> {
+    op.block_colours_with(|op| block_colours(op, op.n_contacts()))
 }
 
 /// The contacts of `list` (in increasing order) within `[first, end)`.

@@ -37,7 +37,8 @@ use rayon::prelude::*;
 
 use super::monitor::Monitor;
 use super::nlgs::{
-    block_colours, local_solve, local_solve_of, set_impulse, threaded_sweep, update_gathered, update_rolling, Sweep,
+    kept_block_colours, local_solve, local_solve_of, set_impulse, threaded_sweep, update_gathered, update_rolling,
+    Sweep,
 };
 use super::stopping::velocity_scale;
 use super::{SolveReport, SolverKind, SolverOptions, StopCriterion};
@@ -159,7 +160,7 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
     let local = |a: usize, ra: [f64; 2], wr: [f64; 2]| local_solve(p, &diag[a], a, ra, wr, opts.omega);
     let roll = |a: usize, r: &mut SharedSlice, v: &mut SharedSlice| update_rolling(p, op, opts.omega, a, r, v);
     let solves = (&local, rolling.then_some(&roll));
-    let colours = op.block_colours_with(|op| block_colours(op, nc)).unwrap_or_else(|| Arc::new(vec![vec![(0, nc)]]));
+    let colours = kept_block_colours(op).unwrap_or_else(|| Arc::new(vec![vec![(0, nc)]]));
     let mut blocks: Vec<Block> = colours
         .iter()
         .enumerate()

@@ -1,7 +1,8 @@
 //! What a step hands to the next: each contact's impulse (the solve's warm start) and, when the
 //! solve coloured the contact graph (threaded or GPU Gauss–Seidel), each contact's colour, so
 //! the next colouring is repaired rather than rebuilt, and the work list's neighbour table and
-//! the threaded sweeps' blocks by colour, reused while the contacts are the same. Contacts are matched by (body, antagonist, feature).
+//! the threaded sweeps' blocks by colour, reused while the contacts are the same. Contacts are
+//! matched by (body, antagonist, feature).
 
 use crate::detection::{Antagonist, DetectedContact};
 use std::sync::Arc;
