@@ -10,6 +10,18 @@ pub const CHUNK: usize = 1024;
 /// Below this many contacts a loop stays on one thread: a task would cost more than its work.
 pub const PARALLEL_MIN: usize = 4096;
 
+/// The most threads a pool may have: a count beyond it is a typo, and building its threads
+/// would take minutes and gigabytes before the first step.
+pub const MAX_THREADS: usize = 1024;
+
+/// A pool of `threads` threads (1..=[`MAX_THREADS`]), or an error naming the count.
+pub fn thread_pool(threads: usize) -> Result<rayon::ThreadPool, String> {
+    if !(1..=MAX_THREADS).contains(&threads) {
+        return Err(format!("threads {threads}: must lie in 1..={MAX_THREADS} (0: all cores)"));
+    }
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("threads {threads}: {e}"))
+}
+
 /// Whether a loop over `n` items runs on threads.
 pub fn parallel(n: usize) -> bool {
     n >= PARALLEL_MIN && rayon::current_num_threads() > 1
@@ -71,9 +83,7 @@ pub fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> Re
     if threads == 0 {
         return Ok(on_pool(f));
     }
-    let pool =
-        rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("threads {threads}: {e}"))?;
-    Ok(pool.install(f))
+    Ok(thread_pool(threads)?.install(f))
 }
 
 #[cfg(test)]
@@ -89,6 +99,16 @@ mod tests {
             let here = std::thread::current().id();
             assert_eq!(on_pool(|| std::thread::current().id()), here);
         });
+    }
+
+    #[test]
+    fn thread_counts_out_of_range_are_refused_with_the_count() {
+        for n in [0, MAX_THREADS + 1, 100_000] {
+            let e = thread_pool(n).expect_err("refused");
+            assert!(e.contains(&format!("threads {n}")), "{e}");
+        }
+        assert_eq!(thread_pool(2).unwrap().current_num_threads(), 2);
+        assert!(with_threads(MAX_THREADS + 1, || ()).is_err());
     }
 
     #[test]

@@ -52,6 +52,10 @@ fn bad_files_are_rejected_with_a_reason() {
     assert_error(&good.replacen("2\n2\n0", "2\n2\n7", 1), "unknown matrix storage tag 7");
     assert_error("", "end of file");
     assert_error("2\n1\n0\n2\n2\n2\t2\n 0 0 0 0 \n -1 0 \n 0.5\n", "W_nn must be > 0");
+    // W = B M⁻¹ Bᵀ: a far-from-symmetric one is refused, naming the entries; rounding passes.
+    let dense = |w10: &str| format!("2\n1\n0\n2\n2\n2\t2\n 2 0.5 \n {w10} 1 \n -1 0 \n 0.5\n");
+    assert_error(&dense("-0.5"), "not symmetric: W[0,1] = -5e-1 but W[1,0] = 5e-1");
+    assert!(parse_fc2d_str(&dense("0.50000001")).is_ok());
     let sparse = format_fc2d(&lattice_packing(3, 2, 0.3, 2), Storage::Sparse);
     assert_error(&sparse.replacen("col 1 :", "col 5 :", 1), "out of order");
     assert_error(&sparse.replacen("CSparse", "Sparse", 1), "CSparse banner");

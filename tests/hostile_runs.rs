@@ -98,6 +98,7 @@ fn a_run_that_blows_up_stops_at_the_step_and_keeps_its_outputs() {
 fn suspicious_starts_are_warned_about() {
     let scene = "effects = [\"gravity\"]\n[time]\nstep = 1e-3\nsteps = 2\n[[material]]\nname = \"g\"\ndensity = 1.0\n\
         [[wall]]\nbox = { min = [0.0, 0.0], max = [1.0, 0.2] }\n\
+        [[wall]]\nbox = { min = [0.4, 0.0], max = [0.6, 0.2] }\n\
         [[body]]\ndisk = { center = [0.5, 0.1], radius = 0.05 }\n\
         [[body]]\ndisk = { center = [5.0, -5.0], radius = 0.05 }\n\
         [[body]]\ndisk = { center = [0.5, 0.5], radius = 0.05 }\n\
@@ -107,7 +108,8 @@ fn suspicious_starts_are_warned_about() {
     assert!(o.status.success(), "{e}");
     for needle in [
         "start outside the walls' bounds, below or beside them (first: body 1",
-        "start inside a wall (first: body 0",
+        // Body 0 lies in both boxes: one grain, not two.
+        "1 grain(s) start inside a wall (first: body 0",
         "same position (first: bodies 2 and 3",
     ] {
         assert!(e.contains(needle), "no warning {needle:?}:\n{e}");
@@ -202,6 +204,11 @@ fn nothing_is_silently_accepted() {
     refused(&o, &["--n 0", "at least 1"]);
     let o = moreau().args(["bench", "--sizes", "100", "--solve-to=-1"]).output().unwrap();
     refused(&o, &["--solve-to -1", "> 0"]);
+    // A thread count nobody means: refused at once, not minutes spent making the threads.
+    let (o, _) = run_scene("threads", SMALL, &["--threads", "100000"]);
+    refused(&o, &["--threads 100000", "1..=1024"]);
+    let o = moreau().args(["solve", "tests/data/none.dat", "--threads", "5000"]).output().unwrap();
+    refused(&o, &["--threads 5000"]);
     // A lone disk in the air: no step has a problem to time sweeps on.
     std::fs::write(dir.join("lone.toml"), SMALL).unwrap();
     let o = moreau()

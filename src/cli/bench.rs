@@ -159,8 +159,8 @@ fn scene_bench(path: &Path, a: &BenchArgs) -> Result<()> {
         threads = vec![1, std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)];
         threads.dedup();
     }
-    if let Some(t) = threads.iter().find(|&&t| t == 0 || t > 1024) {
-        bail!("--threads-list {t}: each thread count must lie in 1..=1024");
+    if let Some(t) = threads.iter().find(|&&t| t == 0 || t > crate::parallel::MAX_THREADS) {
+        bail!("--threads-list {t}: each thread count must lie in 1..={}", crate::parallel::MAX_THREADS);
     }
     let mut reference: Option<ContactProblem> = None;
     let mut scene_options: Option<SolverOptions> = None;

@@ -155,11 +155,45 @@ impl BlockSparse {
         e
     }
 
-    /// Checks indices and values: sorted columns, finite entries, a diagonal block per row.
+    /// Checks indices and values: sorted columns, finite entries, a diagonal block per row, and
+    /// symmetry (`W = B M⁻¹ Bᵀ`: an asymmetric file is a wrong file, whose answer would be
+    /// meaningless).
     pub fn validate(&self) -> Result<(), String> {
         if let Some(k) = self.blocks.iter().position(|b| b.iter().any(|x| !x.is_finite())) {
             let a = self.row_ptr.partition_point(|&p| p <= k) - 1;
             return Err(format!("entry in block ({a}, {}) is not finite", self.cols[k]));
+        }
+        self.check_symmetry()
+    }
+
+    /// The block (row, column), if stored.
+    fn block(&self, row: usize, col: usize) -> Option<&Mat2> {
+        let cols = &self.cols[self.row_ptr[row]..self.row_ptr[row + 1]];
+        cols.binary_search(&col).ok().map(|k| &self.blocks[self.row_ptr[row] + k])
+    }
+
+    /// `|W_ij − W_ji| ≤ 1e-4 √(|W_ii W_jj|)` for every scalar pair, with a floor of 1e-12 times
+    /// the largest diagonal entry: the rounding of an assembled `W` passes (Siconos' slider-crank
+    /// file is off by 1.4e-6 of that scale), a transposed or mistyped entry does not.
+    fn check_symmetry(&self) -> Result<(), String> {
+        let n = self.n_contacts();
+        let diag = |i: usize| self.block(i / 2, i / 2).map_or(0.0, |b| b[3 * (i % 2)].abs());
+        let floor = 1e-12 * (0..2 * n).map(diag).fold(0.0, f64::max);
+        for a in 0..n {
+            for k in self.row_ptr[a]..self.row_ptr[a + 1] {
+                let c = self.cols[k];
+                let zero = [0.0; 4];
+                let mirror = self.block(c, a).unwrap_or(&zero);
+                for (x, y) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                    let (i, j) = (2 * a + x, 2 * c + y);
+                    let (wij, wji) = (self.blocks[k][2 * x + y], mirror[2 * y + x]);
+                    if (wij - wji).abs() > 1e-4 * (diag(i) * diag(j)).sqrt() + floor {
+                        return Err(format!(
+                            "not symmetric: W[{i},{j}] = {wij:e} but W[{j},{i}] = {wji:e} (W = B M⁻¹ Bᵀ is)"
+                        ));
+                    }
+                }
+            }
         }
         Ok(())
     }

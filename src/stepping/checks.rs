@@ -136,9 +136,12 @@ fn start_overlaps(world: &World) -> Vec<String> {
         ));
     }
     if let Some(&(k, w, depth)) = in_wall.first() {
+        // A grain may sit in several walls: count grains, not grain–wall pairs.
+        let mut grains: Vec<usize> = in_wall.iter().map(|p| p.0).collect();
+        grains.dedup();
         warnings.push(format!(
             "{} grain(s) start inside a wall (first: body {k} in wall {w}, {depth:.3e} m deep); they will stay stuck",
-            in_wall.len()
+            grains.len()
         ));
     }
     if let Some(&(i, j)) = coincident.first() {

@@ -363,12 +363,7 @@ impl Simulation {
     pub fn set_threads(&mut self, threads: usize) -> Result<(), StepError> {
         self.pool = match threads {
             0 => None,
-            n => Some(std::sync::Arc::new(
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(n)
-                    .build()
-                    .map_err(|e| StepError::Settings(format!("threads {n}: {e}")))?,
-            )),
+            n => Some(std::sync::Arc::new(crate::parallel::thread_pool(n).map_err(StepError::Settings)?)),
         };
         Ok(())
     }
