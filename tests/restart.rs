@@ -154,6 +154,7 @@ fn a_checkpoint_is_refused_for_another_scene_or_when_it_was_tampered_with() {
     tamper(&|c| c["contacts"][0]["body"] = 9999.into(), "which the scene lacks");
     tamper(&|c| c["contacts"][0]["other_wall"] = 0.into(), "exactly one of other_body, other_wall");
     tamper(&|c| c["format"] = 7.into(), "format 7 is not 1");
+    tamper(&|c| c["time"] = (-1.0).into(), "time -1 is negative");
     tamper(&|c| c["contacts"].as_array_mut().unwrap().reverse(), "not sorted");
     // A checkpoint at the scene's last step needs --steps to go on.
     std::fs::write(

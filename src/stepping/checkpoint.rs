@@ -175,6 +175,9 @@ impl Simulation {
         if !finite {
             return refuse("a value is not finite".into());
         }
+        if c.time < 0.0 {
+            return refuse(format!("time {} is negative", c.time));
+        }
         let keys = c.contacts.iter().map(CarriedContact::key).collect::<Result<Vec<_>, _>>().map_err(refused)?;
         if let Some(bad) = keys.iter().find(|k| {
             k.0 >= n || matches!(k.1, Antagonist::Body(j) if j >= n) || matches!(k.1, Antagonist::Wall(w) if w >= walls)
