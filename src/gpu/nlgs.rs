@@ -168,7 +168,11 @@ pub fn solve(
     let r_buf = storage(ctx, "r", &r32);
     // As on the CPU, the list needs the contacts of each body: a matrix-free problem.
     let worklist = opts.ordering == Ordering::Worklist && matches!(p.w, Delassus::MatrixFree(_));
-    let threshold = if worklist { worklist::threshold(p, opts.tol, opts.criterion) as f32 } else { 0.0 };
+    let threshold = if worklist {
+        worklist::threshold(p, opts.tol, opts.criterion, worklist::F32_THRESHOLD_SHARE) as f32
+    } else {
+        0.0
+    };
     let sweep = ColouredSweep::new(ctx, p, &gp, &r_buf, threshold);
     // Deeper histories are cut to the kernels' (backend::gpu_omits says so); the work list's
     // sweeps are not mixed, as on the CPU: a mix would move the contacts it leaves alone.
