@@ -14,10 +14,22 @@ pub const PARALLEL_MIN: usize = 4096;
 /// would take minutes and gigabytes before the first step.
 pub const MAX_THREADS: usize = 1024;
 
+/// Refuses a requested thread count (0: all cores) above [`MAX_THREADS`], naming it.
+pub fn check_thread_count(threads: usize) -> Result<(), String> {
+    if threads > MAX_THREADS {
+        return Err(out_of_range(threads));
+    }
+    Ok(())
+}
+
+fn out_of_range(threads: usize) -> String {
+    format!("threads {threads}: must lie in 1..={MAX_THREADS} (0: all cores)")
+}
+
 /// A pool of `threads` threads (1..=[`MAX_THREADS`]), or an error naming the count.
 pub fn thread_pool(threads: usize) -> Result<rayon::ThreadPool, String> {
     if !(1..=MAX_THREADS).contains(&threads) {
-        return Err(format!("threads {threads}: must lie in 1..={MAX_THREADS} (0: all cores)"));
+        return Err(out_of_range(threads));
     }
     rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("threads {threads}: {e}"))
 }

@@ -400,9 +400,7 @@ pub(crate) fn option_error(e: solvers::OptionError) -> anyhow::Error {
 
 /// Runs the rest of the command on a rayon pool of `threads` threads (0: all cores).
 pub(crate) fn set_threads(threads: usize) -> Result<()> {
-    if threads > crate::parallel::MAX_THREADS {
-        bail!("--threads {threads}: must lie in 1..={} (0: all cores)", crate::parallel::MAX_THREADS);
-    }
+    crate::parallel::check_thread_count(threads).map_err(|e| anyhow::anyhow!("--{e}"))?;
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build_global()
