@@ -283,10 +283,14 @@ fn settle(path: &Path, scene: moreau::scene::Scene, warmup: usize, threads: usiz
     let on = if gpu.is_some() { "_gpu" } else { "" };
     let kept = Path::new("target/peers").join(format!("settled_{}_{warmup}_{threads}{on}.json", scene.name));
     let mut sim = Simulation::new(scene.world, scene.settings).expect("a valid scene");
-    if let Ok(c) = read_checkpoint(&kept, path) {
-        sim.restore(&c).expect("the kept settled state");
-        eprintln!("settled state read from {}", kept.display());
-        return (sim.world.clone(), c);
+    // A kept state of other grains (the generator changed since) is refused: settled again.
+    match read_checkpoint(&kept, path).map(|c| sim.restore(&c).map(|()| c)) {
+        Ok(Ok(c)) => {
+            eprintln!("settled state read from {}", kept.display());
+            return (sim.world.clone(), c);
+        }
+        Ok(Err(e)) => eprintln!("{} not used: {e}; settling again", kept.display()),
+        Err(_) => {}
     }
     if let Some(device) = gpu {
         eprintln!("settling: {}", sim.choose_device(device).unwrap_or_else(|e| panic!("{e}")));

@@ -196,6 +196,10 @@ enum MoreauStatus moreau_simulation_solve_options(const struct MoreauSimulation 
 enum MoreauStatus moreau_simulation_set_solver(struct MoreauSimulation *sim,
                                                const struct MoreauSolveOptions *options);
 
+// Sets the time step (s) of the following steps; one that is not finite and positive is
+// refused and changes nothing. The next step starts from the last step's impulses scaled to it.
+enum MoreauStatus moreau_simulation_set_time_step(struct MoreauSimulation *sim, double h);
+
 // Advances one step; `report` may be NULL. A step whose solve misses its tolerance succeeds
 // (the report says so); a step that blows up fails and the simulation keeps its last state.
 enum MoreauStatus moreau_simulation_step(struct MoreauSimulation *sim,

@@ -175,6 +175,22 @@ fn outputs_stay_in_their_directory_and_hold_no_stale_files() {
 }
 
 #[test]
+fn the_time_step_is_set_from_the_command_line_and_refused_when_it_cannot_be() {
+    let (o, out) = run_scene("time_step", SMALL, &["--time-step", "5e-4"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("h = 5e-4"), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(out.join("steps.csv")).unwrap();
+    let last: f64 = csv.lines().last().unwrap().split(',').nth(1).unwrap().parse().unwrap();
+    assert!((last - 3.0 * 5e-4).abs() < 1e-15, "3 steps of 5e-4 s end at {last}");
+    for bad in ["0", "-1e-3", "nan", "inf"] {
+        let (o, _) = run_scene("bad_time_step", SMALL, &[&format!("--time-step={bad}")]);
+        refused(&o, &["--time-step", "must be finite and > 0"]);
+    }
+    let o = moreau().args(["run", "scenes/signorini_punch.toml", "--time-step", "1e-3"]).output().unwrap();
+    refused(&o, &["--time-step", "punch scene"]);
+}
+
+#[test]
 fn steps_that_never_come_and_zero_periods_are_refused() {
     let (o, _) = run_scene("late_dump", SMALL, &["--dump-problem", "7"]);
     refused(&o, &["--dump-problem 7", "steps 1 to 3"]);

@@ -156,6 +156,7 @@ fn a_checkpoint_is_refused_for_another_scene_or_when_it_was_tampered_with() {
     tamper(&|c| c["format"] = 7.into(), "format 7 is not 1");
     tamper(&|c| c["time"] = (-1.0).into(), "time -1 is negative");
     tamper(&|c| c["contacts"].as_array_mut().unwrap().reverse(), "not sorted");
+    tamper(&|c| c["shapes"] = "fnv1a64:0000000000000000".into(), "other shapes");
     // A checkpoint at the scene's last step needs --steps to go on.
     std::fs::write(
         dir.join("short.toml"),
@@ -169,6 +170,66 @@ fn a_checkpoint_is_refused_for_another_scene_or_when_it_was_tampered_with() {
     std::fs::write(&short_checkpoint, at_end.to_string()).unwrap();
     let e = refusal(&dir.join("short.toml"), &short_checkpoint, &[]);
     assert!(e.contains("the scene's last: give --steps"), "{e}");
+}
+
+#[test]
+fn a_checkpoint_is_refused_for_bodies_of_other_shapes() {
+    // What a generator that now draws other grains would give: the same scene file, other bodies.
+    let scene = Path::new("scenes/pile.toml");
+    let mut sim = Simulation::from_scene(scene).unwrap();
+    sim.step().unwrap();
+    let c = sim.checkpoint();
+    assert!(Simulation::from_scene(scene).unwrap().restore(&c).is_ok(), "the same scene's bodies");
+    type Change = fn(&mut moreau::World);
+    let changes: [(&str, Change); 3] = [
+        ("a radius", |w| w.bodies.shape[7] = moreau::world::BodyShape::Disk { radius: 0.123 }),
+        ("a material", |w| w.bodies.material[7] += 1),
+        ("a fixing", |w| w.bodies.inv_mass[7] = 0.0),
+    ];
+    for (what, change) in changes {
+        let mut other = Simulation::from_scene(scene).unwrap();
+        change(&mut other.world);
+        let e = other.restore(&c).unwrap_err().to_string();
+        assert!(e.contains("other shapes") && e.contains("generator"), "{what}: {e}");
+        assert_eq!(other.steps_done(), 0, "{what}: a refused checkpoint changed the simulation");
+    }
+    // Files written before the fingerprint carry none and are not checked.
+    let mut other = Simulation::from_scene(scene).unwrap();
+    other.world.bodies.material[7] += 1;
+    assert!(other.restore(&moreau::stepping::Checkpoint { shapes: None, ..c }).is_ok());
+}
+
+#[test]
+fn a_restart_at_another_time_step_starts_from_the_impulses_scaled_to_it() {
+    let scene = Path::new("scenes/pile.toml");
+    let mut first = Simulation::from_scene(scene).unwrap();
+    first.set_threads(1).unwrap();
+    for _ in 0..60 {
+        first.step().unwrap();
+    }
+    let c = first.checkpoint();
+    assert_eq!(c.time_step, Some(first.settings.h));
+    let half = first.settings.h / 2.0;
+    let step_at_half = |c: &moreau::stepping::Checkpoint| {
+        let mut sim = Simulation::from_scene(scene).unwrap();
+        sim.set_threads(1).unwrap();
+        sim.restore(c).unwrap();
+        sim.set_time_step(half).unwrap();
+        let r = sim.step().unwrap();
+        assert!(r.converged);
+        (r.iterations, r.error.to_bits(), sim.contacts().iter().map(|x| x.impulse[0].to_bits()).collect::<Vec<_>>())
+    };
+    first.set_time_step(half).unwrap();
+    let r = first.step().unwrap();
+    let went_on = (r.iterations, r.error.to_bits(), first.contacts().iter().map(|x| x.impulse[0].to_bits()).collect());
+    assert_eq!(step_at_half(&c), went_on, "a restart at another step goes on as the run would have");
+    let unscaled = step_at_half(&moreau::stepping::Checkpoint { time_step: None, ..c.clone() });
+    assert_ne!(unscaled, went_on, "without the step it was taken over, the impulses are not scaled");
+    assert!(unscaled.0 > went_on.0, "scaled impulses start nearer: {} against {} sweeps", went_on.0, unscaled.0);
+    let mut sim = Simulation::from_scene(scene).unwrap();
+    let e = sim.restore(&moreau::stepping::Checkpoint { time_step: Some(-1.0), ..c }).unwrap_err();
+    assert!(e.to_string().contains("time_step -1 must be finite and > 0"), "{e}");
+    assert!(sim.set_time_step(f64::NAN).is_err() && sim.settings.h > 0.0);
 }
 
 #[test]

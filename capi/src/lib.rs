@@ -499,6 +499,16 @@ pub extern "C" fn moreau_simulation_set_solver(
     })
 }
 
+/// Sets the time step (s) of the following steps; one that is not finite and positive is
+/// refused and changes nothing. The next step starts from the last step's impulses scaled to it.
+#[no_mangle]
+pub extern "C" fn moreau_simulation_set_time_step(sim: *mut MoreauSimulation, h: f64) -> MoreauStatus {
+    guard(|| {
+        let sim = &mut object_mut(sim, "sim")?.0;
+        sim.set_time_step(h).or_else(|e| fail(MoreauStatus::InvalidArgument, e.to_string()))
+    })
+}
+
 /// Advances one step; `report` may be NULL. A step whose solve misses its tolerance succeeds
 /// (the report says so); a step that blows up fails and the simulation keeps its last state.
 #[no_mangle]

@@ -209,6 +209,26 @@ fn a_c_program_sets_a_scenes_ordering_and_criterion_as_the_library_does() {
 }
 
 #[test]
+fn a_c_program_sets_the_time_step_as_the_library_does() {
+    let program = compile("step_scene");
+    let scene = repo().join("scenes/pile.toml");
+    let (code, out, err) = run(&program, &[scene.to_str().unwrap(), "20", "1", "-", "-", "5e-4"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let mut sim = Simulation::from_scene(&scene).unwrap();
+    sim.set_threads(1).unwrap();
+    let h = sim.settings.h;
+    sim.set_time_step(5e-4).unwrap();
+    assert!(h != 5e-4, "the scene's own step is another");
+    (0..20).for_each(|_| assert!(sim.step().unwrap().converged));
+    assert!((field(&out, "time") - 20.0 * 5e-4).abs() < 1e-12, "{out}");
+    let sum: f64 = sim.contacts().iter().map(|c| c.impulse[0]).sum();
+    assert!((field(&out, "sum_rn") - sum).abs() <= 1e-8 * sum.abs(), "{out}: Rust's sum {sum:.9e}");
+    let (code, _, err) = run(&program, &[scene.to_str().unwrap(), "1", "1", "-", "-", "-0.001"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("time step -0.001 must be finite and > 0"), "{err}");
+}
+
+#[test]
 fn bad_input_through_c_gets_the_command_lines_message_and_a_non_zero_exit() {
     let solve = compile("solve_file");
     let file = repo().join("fuzz/seeds/problem_parser/FC2D_SliderCrankLagrangian00000.dat");

@@ -1,19 +1,21 @@
 /* Steps a moreau scene file from C and prints the state a host would read back.
  *
  *   cc -I include examples/c/step_scene.c -L target/release -lmoreau_c -o step_scene
- *   ./step_scene SCENE.toml [STEPS [THREADS [ORDERING [CRITERION]]]]
+ *   ./step_scene SCENE.toml [STEPS [THREADS [ORDERING [CRITERION [TIME_STEP]]]]]
  *
- * ORDERING and CRITERION replace the scene's (`worklist` and `velocity` suit a settled pile).
+ * ORDERING and CRITERION replace the scene's (`worklist` and `velocity` suit a settled pile; `-`
+ * keeps the scene's), and TIME_STEP its time step in seconds.
  *
  * Exit status: 0 every step converged, 3 some did not, 1 an error (the message names it). */
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "moreau.h"
 
 int main(int argc, char **argv) {
     if (argc < 2) {
-        fprintf(stderr, "usage: %s SCENE.toml [STEPS [THREADS [ORDERING [CRITERION]]]]\n", argv[0]);
+        fprintf(stderr, "usage: %s SCENE.toml [STEPS [THREADS [ORDERING [CRITERION [TIME_STEP]]]]]\n", argv[0]);
         return 2;
     }
     int steps = argc > 2 ? atoi(argv[2]) : 100;
@@ -29,9 +31,10 @@ int main(int argc, char **argv) {
         /* The scene's settings, with the names given replaced. */
         MoreauSolveOptions options;
         int ok = moreau_simulation_solve_options(sim, &options) == MOREAU_STATUS_OK;
-        options.ordering = argv[4];
-        options.criterion = argc > 5 ? argv[5] : NULL;
-        if (!ok || moreau_simulation_set_solver(sim, &options) != MOREAU_STATUS_OK) {
+        options.ordering = strcmp(argv[4], "-") ? argv[4] : NULL;
+        options.criterion = argc > 5 && strcmp(argv[5], "-") ? argv[5] : NULL;
+        if (!ok || moreau_simulation_set_solver(sim, &options) != MOREAU_STATUS_OK ||
+            (argc > 6 && moreau_simulation_set_time_step(sim, atof(argv[6])) != MOREAU_STATUS_OK)) {
             fprintf(stderr, "error: %s\n", moreau_last_error());
             moreau_simulation_free(sim);
             return 1;

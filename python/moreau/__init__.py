@@ -260,6 +260,17 @@ class Simulation:
                                criterion, ordering, count(anderson, "anderson"), count(focus, "focus"),
                                None if omega is None else float(omega))
 
+    def set_time_step(self, h: float) -> None:
+        """Sets the time step (s) of the following steps, as ``moreau run --time-step`` does; the
+        next step starts from the last step's impulses scaled to it. A step that is not finite
+        and positive raises MoreauError and changes nothing."""
+        self._inner.set_time_step(float(h))
+
+    @property
+    def time_step(self) -> float:
+        """The time step (s) of the steps."""
+        return self._inner.time_step
+
     def solver_settings(self) -> Dict[str, Any]:
         """The solver of the steps and its options: ``solver``, ``tol``, ``max_iter``,
         ``criterion``, ``ordering``, ``anderson``, ``focus``, …"""

@@ -421,6 +421,19 @@ impl Simulation {
         self.0.set_solver(solver, options).map_err(error)
     }
 
+    /// The time step of the following steps (s); refused, with the settings unchanged, when it
+    /// is not finite and positive. The next step starts from the last step's impulses scaled
+    /// to it.
+    fn set_time_step(&mut self, h: f64) -> PyResult<()> {
+        self.0.set_time_step(h).map_err(error)
+    }
+
+    /// The time step of the steps (s).
+    #[getter]
+    fn time_step(&self) -> f64 {
+        self.0.settings.h
+    }
+
     /// The solver of the steps and its options, as a dict (`solver`, `tol`, `max_iter`,
     /// `criterion`, `ordering`, `anderson`, `focus`, …).
     fn solver_settings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {

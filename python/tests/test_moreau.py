@@ -194,6 +194,28 @@ def test_a_scene_given_another_solver_from_python_steps_as_the_command_lines_ove
     assert sim.solver_settings() == after
 
 
+def test_a_scene_given_another_time_step_from_python_steps_as_the_command_line_does(tmp_path):
+    steps = 20
+    args = [cli(), "run", str(PILE), "--steps", str(steps), "--threads", "1", "--device", "cpu", "--quiet"]
+    subprocess.run(args + ["--time-step", "5e-4", "--out", str(tmp_path / "half")], check=True, capture_output=True)
+    rows = read_steps(tmp_path / "half/steps.csv")
+    sim = moreau.Simulation.from_scene(PILE)
+    sim.set_device("cpu", threads=1)
+    assert sim.time_step != 5e-4
+    sim.set_time_step(5e-4)
+    assert sim.time_step == 5e-4
+    for row in rows:
+        report = sim.step()
+        assert report["iterations"] == int(row["iterations"])
+        assert report["kinetic_energy"] == pytest.approx(float(row["kinetic_energy"]), rel=1e-12, abs=0.0)
+    assert sim.time == pytest.approx(steps * 5e-4, rel=1e-12)
+    # Refused steps change nothing.
+    for bad in (0.0, -1e-3, float("nan"), float("inf")):
+        with pytest.raises(moreau.MoreauError, match="must be finite and > 0"):
+            sim.set_time_step(bad)
+    assert sim.time_step == 5e-4
+
+
 def test_every_criterion_python_names_is_one_the_library_takes():
     # CRITERIA is written by hand: each name must set that criterion, and a name outside it is refused.
     sim = moreau.Simulation.from_scene(PILE)

@@ -29,6 +29,10 @@ pub struct RunArgs {
     /// Solver of every step (default: the scene's).
     #[arg(long, value_enum)]
     solver: Option<SolverKind>,
+    /// Time step in seconds (default: the scene's; the scene's number of steps is kept). After
+    /// --restart at another step, the checkpoint's impulses are scaled to it.
+    #[arg(long)]
+    time_step: Option<f64>,
     /// Solver tolerance (default: the scene's).
     #[arg(long)]
     tol: Option<f64>,
@@ -84,6 +88,9 @@ pub fn run_command(a: RunArgs) -> Result<()> {
     let mut scene = match scene::load_any(&a.scene)? {
         scene::AnyScene::Granular(s) => *s,
         scene::AnyScene::Punch(p) => {
+            if a.time_step.is_some() {
+                bail!("--time-step: {} is a punch scene, a static problem without time steps", a.scene.display());
+            }
             let overrides = PunchOverrides {
                 solver: a.solver,
                 tol: a.tol,
@@ -217,6 +224,12 @@ pub fn run_command(a: RunArgs) -> Result<()> {
 fn apply_overrides(scene: &mut scene::Scene, a: &RunArgs) -> Result<()> {
     if let Some(s) = a.solver {
         scene.settings.solver = s;
+    }
+    if let Some(h) = a.time_step {
+        if !(h.is_finite() && h > 0.0) {
+            bail!("--time-step {h}: must be finite and > 0");
+        }
+        scene.settings.h = h;
     }
     if let Some(t) = a.tol {
         if !(t.is_finite() && t > 0.0) {

@@ -46,10 +46,7 @@ pub enum CheckpointError {
 
 /// FNV-1a (64 bits) of a scene file's bytes: a checkpoint is applied only to the file it came
 /// from.
-pub fn fingerprint(bytes: &[u8]) -> String {
-    let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3));
-    format!("fnv1a64:{hash:016x}")
-}
+pub use crate::world::fingerprint;
 
 /// The name and fingerprint of a scene file, to stamp a checkpoint with.
 pub fn scene_identity(scene: &Path) -> Result<(String, String), CheckpointError> {

@@ -42,6 +42,14 @@ pub struct Checkpoint {
     /// (`backend`'s `MixingPause`; zeros on the CPU and in files written before it).
     #[serde(default)]
     pub mixing_pause: [usize; 2],
+    /// The world's [`crate::world::World::shapes_fingerprint`] then: restored only onto the same shapes
+    /// (absent in files written before it, which are not checked).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shapes: Option<String>,
+    /// The step the contacts' impulses were taken over: restored at another step, they are
+    /// scaled to it (absent in files written before it, or when no step was taken).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_step: Option<f64>,
 }
 
 /// The checkpoint format this version writes and reads.
@@ -141,6 +149,8 @@ impl Simulation {
             contacts,
             moving: colours.map(|(_, moving)| moving.to_vec()),
             mixing_pause: self.backend.mixing_pause(),
+            shapes: Some(self.world.shapes_fingerprint()),
+            time_step: Some(self.warm_start.time_step()).filter(|&h| h > 0.0),
         }
     }
 
@@ -166,6 +176,16 @@ impl Simulation {
         if let Some((what, got, expected)) = sizes.into_iter().find(|s| s.1 != s.2) {
             return refuse(format!("{what} has {got} entries, the scene {expected}"));
         }
+        if let Some(written) = &c.shapes {
+            let now = self.world.shapes_fingerprint();
+            if *written != now {
+                return refuse(format!(
+                    "it was taken of bodies and walls with other shapes, materials or fixings (fingerprint \
+                     {written}; this world's {now}): the scene's generator or grains file now gives other \
+                     grains, or bodies were added or removed since"
+                ));
+            }
+        }
         let finite = c.time.is_finite()
             && c.position.iter().chain(&c.velocity).flatten().all(|x| x.is_finite())
             && c.angle.iter().chain(&c.spin).all(|x| x.is_finite())
@@ -177,6 +197,9 @@ impl Simulation {
         }
         if c.time < 0.0 {
             return refuse(format!("time {} is negative", c.time));
+        }
+        if let Some(h) = c.time_step.filter(|h| !(h.is_finite() && *h > 0.0)) {
+            return refuse(format!("time_step {h} must be finite and > 0"));
         }
         let keys = c.contacts.iter().map(CarriedContact::key).collect::<Result<Vec<_>, _>>().map_err(refused)?;
         if let Some(bad) = keys.iter().find(|k| {
@@ -210,7 +233,7 @@ impl Simulation {
         for (wall, s) in self.world.walls.iter_mut().zip(&c.walls) {
             (wall.center, wall.angle, wall.velocity, wall.spin) = (s.center.into(), s.angle, s.velocity.into(), s.spin);
         }
-        self.warm_start = WarmStart::from_parts(entries, colours);
+        self.warm_start = WarmStart::from_parts(entries, colours, c.time_step.unwrap_or(0.0));
         // Checked above, before anything was changed.
         let _ = self.backend.set_mixing_pause(c.mixing_pause);
         (self.time, self.step_index) = (c.time, c.steps_done);

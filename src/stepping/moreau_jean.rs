@@ -342,7 +342,7 @@ pub(super) fn assemble(sim: &mut Simulation, step: usize) -> Result<Assembled, S
     // 3. The local problem, warm-started from last step's impulses (and colours).
     let world = &sim.world;
     let op = operator(world, &assembled.detected, dofs).map_err(|message| StepError::Problem { step, message })?;
-    let recalled = sim.warm_start.recall(&assembled.detected, &op.moving(), op.has_rolling());
+    let recalled = sim.warm_start.recall(&assembled.detected, &op.moving(), op.has_rolling(), h);
     if let Some(kept) = &recalled.colours {
         op.give_colouring(Colouring::repaired(&op, kept));
     }
@@ -504,7 +504,7 @@ fn apply(
         Delassus::MatrixFree(op) => Some(op),
         Delassus::Sparse(_) => None,
     });
-    sim.warm_start.remember(&detected, &impulses, op);
+    sim.warm_start.remember(&detected, &impulses, op, sim.settings.h);
     sim.contacts = match &problem {
         None => Vec::new(),
         Some(problem) => map_indices(detected.len(), |a| {

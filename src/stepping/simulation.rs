@@ -384,6 +384,16 @@ impl Simulation {
         Ok(())
     }
 
+    /// The time step of the following steps; refused, with the settings unchanged, when it is
+    /// not finite and positive. The next step starts from the last step's impulses scaled to
+    /// it (an impulse is a force times the step).
+    pub fn set_time_step(&mut self, h: f64) -> Result<(), StepError> {
+        let settings = StepSettings { h, ..self.settings.clone() };
+        settings.validate().map_err(StepError::Settings)?;
+        self.settings = settings;
+        Ok(())
+    }
+
     /// Where the steps are solved.
     pub fn backend(&self) -> &Backend {
         &self.backend

@@ -30,6 +30,9 @@ pub struct WarmStart {
     /// Which bodies could move last step (empty when nothing above is kept): kept colours stay
     /// proper, and a kept table right, only while the same bodies move.
     moving: Vec<bool>,
+    /// The time step the impulses were taken over (0: not known). An impulse is a force times
+    /// the step, so a step of another length recalls them scaled to its own.
+    time_step: f64,
 }
 
 /// What the last step carries over to `contacts`.
@@ -73,10 +76,12 @@ impl WarmStart {
     }
 
     /// Remembers `impulses` (2 per contact, then 1 per contact with rolling resistance) of
-    /// `contacts` (sorted by key, as detection returns them), and the colouring and neighbour
-    /// table the solve used on their operator `op`, if any, with the bodies that could move.
-    pub fn remember(&mut self, contacts: &[DetectedContact], impulses: &[f64], op: Option<&MatrixFree>) {
+    /// `contacts` (sorted by key, as detection returns them), taken over a step `h`, and the
+    /// colouring and neighbour table the solve used on their operator `op`, if any, with the
+    /// bodies that could move.
+    pub fn remember(&mut self, contacts: &[DetectedContact], impulses: &[f64], op: Option<&MatrixFree>, h: f64) {
         self.entries.clear();
+        self.time_step = h;
         let nc = contacts.len();
         let rolling = |a: usize| impulses.get(2 * nc + a).copied().unwrap_or(0.0);
         self.entries.extend(
@@ -93,9 +98,9 @@ impl WarmStart {
         };
     }
 
-    /// What carries over to `contacts` (sorted by key); `moving` says which bodies can move now,
-    /// `rolling` whether the contacts have rolling unknowns.
-    pub fn recall(&self, contacts: &[DetectedContact], moving: &[bool], rolling: bool) -> Recalled {
+    /// What carries over to `contacts` (sorted by key) for a step `h`; `moving` says which
+    /// bodies can move now, `rolling` whether the contacts have rolling unknowns.
+    pub fn recall(&self, contacts: &[DetectedContact], moving: &[bool], rolling: bool, h: f64) -> Recalled {
         let nc = contacts.len();
         let mut impulses = vec![0.0; if rolling { 3 * nc } else { 2 * nc }];
         let same_bodies = self.moving == moving;
@@ -123,6 +128,10 @@ impl WarmStart {
                 e += 1;
             }
         }
+        if self.time_step > 0.0 && self.time_step != h {
+            let scale = h / self.time_step;
+            impulses.iter_mut().for_each(|r| *r *= scale);
+        }
         // Every contact matched an entry and every entry a contact: the same keys in the same
         // order (the merge matches in increasing order), so the same bodies in each contact.
         let same_contacts = matched == nc && self.entries.len() == nc;
@@ -142,8 +151,14 @@ impl WarmStart {
         self.colours.as_ref().map(|c| (c.as_slice(), self.moving.as_slice()))
     }
 
-    /// The warm start [`Self::entries`] and [`Self::colours`] describe (entries sorted by key; one colour per entry).
-    pub(crate) fn from_parts(entries: Vec<Entry>, colours: Option<(Vec<u32>, Vec<bool>)>) -> Self {
+    /// The time step the impulses were taken over (0: not known).
+    pub(crate) fn time_step(&self) -> f64 {
+        self.time_step
+    }
+
+    /// The warm start [`Self::entries`] and [`Self::colours`] describe (entries sorted by key; one
+    /// colour per entry), taken over a step `time_step` (0: not known, recalled unscaled).
+    pub(crate) fn from_parts(entries: Vec<Entry>, colours: Option<(Vec<u32>, Vec<bool>)>, time_step: f64) -> Self {
         debug_assert!(entries.windows(2).all(|w| w[0].0 <= w[1].0));
         let (colours, moving) = match colours {
             Some((of_entry, moving)) => {
@@ -152,7 +167,7 @@ impl WarmStart {
             }
             None => (None, Vec::new()),
         };
-        Self { entries, colours, neighbours: None, block_colours: None, moving }
+        Self { entries, colours, neighbours: None, block_colours: None, moving, time_step }
     }
 
     /// Contacts remembered.
@@ -188,25 +203,42 @@ mod tests {
             vec![contact(0, Antagonist::Body(1)), contact(0, Antagonist::Wall(0)), contact(1, Antagonist::Wall(0))];
         let moving = op.moving();
         let mut warm = WarmStart::default();
-        warm.remember(&contacts, &[0.0; 6], Some(&op));
-        assert!(warm.recall(&contacts, &moving, false).neighbours.is_none(), "no table built, none kept");
+        warm.remember(&contacts, &[0.0; 6], Some(&op), 1e-3);
+        assert!(warm.recall(&contacts, &moving, false, 1e-3).neighbours.is_none(), "no table built, none kept");
         assert!(op.neighbours().tabled());
         let table = op.neighbours_if_built().expect("built");
         let blocks = op.block_colours_with(|_| Some(vec![vec![(0, 3)]])).expect("cut");
-        warm.remember(&contacts, &[0.0; 6], Some(&op));
-        let recalled = warm.recall(&contacts, &moving, false);
+        warm.remember(&contacts, &[0.0; 6], Some(&op), 1e-3);
+        let recalled = warm.recall(&contacts, &moving, false, 1e-3);
         assert!(recalled.neighbours.is_some_and(|t| Arc::ptr_eq(&t, &table)));
         assert!(recalled.block_colours.is_some_and(|b| Arc::ptr_eq(&b, &blocks)));
-        assert!(warm.recall(&contacts[..2], &moving, false).neighbours.is_none(), "a contact gone");
-        assert!(warm.recall(&contacts[..2], &moving, false).block_colours.is_none(), "a contact gone");
+        assert!(warm.recall(&contacts[..2], &moving, false, 1e-3).neighbours.is_none(), "a contact gone");
+        assert!(warm.recall(&contacts[..2], &moving, false, 1e-3).block_colours.is_none(), "a contact gone");
         let mut more = contacts.clone();
         more.push(contact(1, Antagonist::Wall(1)));
-        assert!(warm.recall(&more, &moving, false).neighbours.is_none(), "a contact new");
+        assert!(warm.recall(&more, &moving, false, 1e-3).neighbours.is_none(), "a contact new");
         let mut pinned = moving.clone();
         pinned[1] = false;
-        assert!(warm.recall(&contacts, &pinned, false).neighbours.is_none(), "a body pinned");
-        assert!(warm.recall(&contacts, &pinned, false).block_colours.is_none(), "a body pinned");
+        assert!(warm.recall(&contacts, &pinned, false, 1e-3).neighbours.is_none(), "a body pinned");
+        assert!(warm.recall(&contacts, &pinned, false, 1e-3).block_colours.is_none(), "a body pinned");
         warm.forget_body(1);
-        assert!(warm.recall(&contacts, &moving, false).neighbours.is_none(), "a body removed");
+        assert!(warm.recall(&contacts, &moving, false, 1e-3).neighbours.is_none(), "a body removed");
+    }
+
+    /// An impulse is a force times the step: a step of another length starts from last step's
+    /// impulses scaled to it, rolling ones too; the same step recalls them bit for bit.
+    #[test]
+    fn impulses_are_recalled_scaled_to_the_step() {
+        let contacts = vec![contact(0, Antagonist::Body(1)), contact(1, Antagonist::Wall(0))];
+        let impulses = [0.3, -0.1, 0.7 / 3.0, 0.05, 1e-3, 2e-3];
+        let mut warm = WarmStart::default();
+        warm.remember(&contacts, &impulses, None, 1e-3);
+        assert_eq!(warm.recall(&contacts, &[true; 2], true, 1e-3).impulses, impulses);
+        let halved = warm.recall(&contacts, &[true; 2], true, 5e-4).impulses;
+        for (a, b) in halved.iter().zip(impulses) {
+            assert!((a - b / 2.0).abs() <= 1e-15 * b.abs(), "{a} against {b} / 2");
+        }
+        let unknown = WarmStart::from_parts(warm.entries().to_vec(), None, 0.0);
+        assert_eq!(unknown.recall(&contacts, &[true; 2], true, 5e-4).impulses, impulses, "a step not known");
     }
 }

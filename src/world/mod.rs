@@ -86,4 +86,42 @@ impl World {
         }
         (lo, hi)
     }
+
+    /// A fingerprint of what a checkpoint leaves to the scene (each body's shape, material and
+    /// whether it is fixed; each wall's shape and material), so that a checkpoint is not applied
+    /// to bodies that are not the ones it was taken of: a generator that now draws other grains,
+    /// another grains file, or bodies added or removed since.
+    pub fn shapes_fingerprint(&self) -> String {
+        let mut words: Vec<u64> = Vec::with_capacity(3 * self.bodies.len() + 4 * self.walls.len());
+        let points = |words: &mut Vec<u64>, points: &[DVec2]| {
+            words.push(points.len() as u64);
+            words.extend(points.iter().flat_map(|p| [p.x.to_bits(), p.y.to_bits()]));
+        };
+        let b = &self.bodies;
+        for k in 0..b.len() {
+            match b.shape[k] {
+                BodyShape::Disk { radius } => words.extend([0, radius.to_bits()]),
+                BodyShape::Polygon(i) => {
+                    words.push(1);
+                    points(&mut words, &b.polygons[i as usize].vertices);
+                }
+            }
+            words.push(b.material[k] as u64 | u64::from(b.inv_mass[k] == 0.0) << 32);
+        }
+        for w in &self.walls {
+            match &w.shape {
+                WallShape::Segment { a, b } => points(&mut words, &[*a, *b]),
+                WallShape::Polygon(p) => points(&mut words, &p.vertices),
+            }
+            words.push(w.material as u64);
+        }
+        fingerprint(bytemuck::cast_slice(&words))
+    }
+}
+
+/// FNV-1a (64 bits) of `bytes`, written `fnv1a64:` and 16 hex digits: how checkpoints name the
+/// scene file and the shapes they belong to.
+pub fn fingerprint(bytes: &[u8]) -> String {
+    let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3));
+    format!("fnv1a64:{hash:016x}")
 }
