@@ -109,10 +109,7 @@ impl World {
             words.push(b.material[k] as u64 | u64::from(b.inv_mass[k] == 0.0) << 32);
         }
         for w in &self.walls {
-            match &w.shape {
-                WallShape::Segment { a, b } => points(&mut words, &[*a, *b]),
-                WallShape::Polygon(p) => points(&mut words, &p.vertices),
-            }
+            points(&mut words, &w.shape.local_points());
             words.push(w.material as u64);
         }
         fingerprint(bytemuck::cast_slice(&words))

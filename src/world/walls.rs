@@ -38,7 +38,8 @@ pub struct Wall {
 }
 
 impl WallShape {
-    fn local_points(&self) -> Vec<DVec2> {
+    /// The segment's endpoints or the polygon's vertices, in the wall frame.
+    pub(crate) fn local_points(&self) -> Vec<DVec2> {
         match self {
             WallShape::Segment { a, b } => vec![*a, *b],
             WallShape::Polygon(p) => p.vertices.clone(),
