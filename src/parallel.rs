@@ -1,6 +1,10 @@
 //! How the CPU path uses threads (rayon's pool: `--threads N`, all cores by default). Work is cut
 //! into fixed chunks whatever the thread count, and partial sums are added in chunk order, so
-//! every result is the same bits for any number of threads, run after run.
+//! every result is the same bits for any number of threads, run after run. A work list's turns,
+//! hundreds of short rounds a step, run on a [`Crew`] of threads kept for the solve instead.
+
+use std::sync::atomic::Ordering::{AcqRel, Acquire, Relaxed, Release, SeqCst};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize};
 
 use rayon::prelude::*;
 
@@ -82,9 +86,10 @@ fn lane_sum(lo: usize, hi: usize, term: impl Fn(usize) -> f64) -> f64 {
 
 /// Runs `f` on a thread of rayon's global pool, or in place when already on a pool's thread.
 /// Why: a parallel loop called from outside the pool hands its work to the pool's threads and
-/// sleeps until they finish, a pair of thread wake-ups per loop. A work-list solve runs hundreds
-/// of short loops a step (one per colour's turn); called from the main thread, the hand-overs
-/// cost the 40,000-disk pile about a tenth of its steps on one thread as on two.
+/// sleeps until they finish, a pair of thread wake-ups per loop. A work-list solve ran hundreds
+/// of short loops a step (one per colour's turn, now a [`Crew`]'s round); called from the main
+/// thread, the hand-overs cost the 40,000-disk pile about a tenth of its steps on one thread as on
+/// two.
 pub fn on_pool<T: Send>(f: impl FnOnce() -> T + Send) -> T {
     rayon::scope(|_| f())
 }
@@ -96,6 +101,193 @@ pub fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> Re
         return Ok(on_pool(f));
     }
     Ok(thread_pool(threads)?.install(f))
+}
+
+/// Helper threads kept for the length of a solve, for many short rounds of independent items (a
+/// work list's turns: hundreds a step, each from microseconds to a millisecond). Why not rayon's
+/// loops: each hands its tasks to the pool's sleeping threads and waits for them, about 30–60 µs
+/// a turn on the 2-core machine, a fifth of a settled pile's threaded solve. A crew's helpers wait
+/// between rounds by spinning for [`CREW_SPIN`], then park, so that they leave the cores to the
+/// pool's loops while the caller does other work.
+pub struct Crew<'a> {
+    shared: &'a CrewShared,
+    helpers: Vec<std::thread::Thread>,
+    round: std::cell::Cell<u32>,
+}
+
+/// How long a crew's helper spins for the next round before it parks.
+pub const CREW_SPIN: std::time::Duration = std::time::Duration::from_micros(50);
+
+struct CrewShared {
+    job: std::sync::Mutex<Option<CrewJob>>,
+    /// The round (high 32 bits) and the next item to hand out (low 32 bits).
+    next: AtomicU64,
+    round: AtomicU32,
+    finished: AtomicUsize,
+    sum: AtomicUsize,
+    sleeping: Vec<AtomicBool>,
+    stop: AtomicBool,
+    panicked: AtomicBool,
+}
+
+/// A round's items: `f(0), …, f(len − 1)`, through a pointer that lives as long as the round
+/// (the caller waits for every item before it returns).
+#[derive(Clone, Copy)]
+struct CrewJob {
+    round: u32,
+    len: usize,
+    f: *const (dyn Fn(usize) -> usize + Sync),
+}
+
+// SAFETY: the pointer is to a `Sync` closure, called only during its round.
+unsafe impl Send for CrewJob {}
+
+/// Helpers for a crew beside a thread of the current pool: one fewer than the pool's threads, and
+/// than the machine's cores (a helper that waits for a core holds up its round, and spinning
+/// helpers would take the cores' time from each other).
+pub fn crew_helpers() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    rayon::current_num_threads().min(cores) - 1
+}
+
+/// Runs `body` with a [`Crew`] of `helpers` threads, which stop when it returns (or panics).
+pub fn with_crew<R>(helpers: usize, body: impl FnOnce(&Crew) -> R) -> R {
+    let shared = CrewShared {
+        job: std::sync::Mutex::new(None),
+        next: AtomicU64::new(0),
+        round: AtomicU32::new(0),
+        finished: AtomicUsize::new(0),
+        sum: AtomicUsize::new(0),
+        sleeping: (0..helpers).map(|_| AtomicBool::new(false)).collect(),
+        stop: AtomicBool::new(false),
+        panicked: AtomicBool::new(false),
+    };
+    std::thread::scope(|scope| {
+        let shared = &shared;
+        let spawned: Vec<_> = (0..helpers).map(|k| scope.spawn(move || helper(shared, k))).collect();
+        let crew = Crew { shared, helpers: spawned.iter().map(|h| h.thread().clone()).collect(), round: 0.into() };
+        // Stops the helpers however `body` ends, before the scope joins them.
+        struct Stop<'c, 'a>(&'c Crew<'a>);
+        impl Drop for Stop<'_, '_> {
+            fn drop(&mut self) {
+                self.0.shared.stop.store(true, SeqCst);
+                self.0.helpers.iter().for_each(std::thread::Thread::unpark);
+            }
+        }
+        let _stop = Stop(&crew);
+        body(&crew)
+    })
+}
+
+impl Crew<'_> {
+    /// Helper threads besides the caller.
+    pub fn helpers(&self) -> usize {
+        self.helpers.len()
+    }
+
+    /// `Σ f(item)` over `items`, each item handed to one thread as in [`Self::round`].
+    pub fn each_mut<T: Send>(&self, items: &mut [T], f: &(dyn Fn(&mut T) -> usize + Sync)) -> usize {
+        struct Items<T>(*mut T);
+        // SAFETY: shared only to reach distinct items, each from one thread at a time.
+        unsafe impl<T: Send> Sync for Items<T> {}
+        let items_at = Items(items.as_mut_ptr());
+        let items_at = &items_at;
+        // SAFETY: `round` runs each index below `len` once, so each item is borrowed once.
+        self.round(items.len(), &|i| f(unsafe { &mut *items_at.0.add(i) }))
+    }
+
+    /// `Σ_{i<len} f(i)`, the items handed out in order to the caller and the helpers, the first
+    /// to ask taking the next; returns when every item is done. `f` must give the same result
+    /// whichever thread runs an item, and items must not depend on each other.
+    pub fn round(&self, len: usize, f: &(dyn Fn(usize) -> usize + Sync)) -> usize {
+        if len < 2 || self.helpers.is_empty() {
+            return (0..len).map(f).sum();
+        }
+        let sh = self.shared;
+        let round = self.round.get().wrapping_add(1);
+        self.round.set(round);
+        // SAFETY: only the lifetime is erased; the pointer is dropped, and no helper can claim an
+        // item of this round, once every item is done below.
+        let f: *const (dyn Fn(usize) -> usize + Sync) = unsafe { std::mem::transmute(f) };
+        *sh.job.lock().unwrap_or_else(|e| e.into_inner()) = Some(CrewJob { round, len, f });
+        sh.sum.store(0, SeqCst);
+        sh.finished.store(0, SeqCst);
+        sh.next.store((round as u64) << 32, SeqCst);
+        sh.round.store(round, SeqCst);
+        for (k, thread) in self.helpers.iter().enumerate() {
+            if sh.sleeping[k].load(SeqCst) {
+                thread.unpark();
+            }
+        }
+        work(sh, CrewJob { round, len, f });
+        // The helpers' last items: spun for, then yielded for (more threads than cores).
+        let since = std::time::Instant::now();
+        while sh.finished.load(Acquire) < len {
+            match since.elapsed() < CREW_SPIN {
+                true => std::hint::spin_loop(),
+                false => std::thread::yield_now(),
+            }
+        }
+        *sh.job.lock().unwrap_or_else(|e| e.into_inner()) = None;
+        if sh.panicked.swap(false, SeqCst) {
+            panic!("an item of a crew's round panicked");
+        }
+        sh.sum.load(SeqCst)
+    }
+}
+
+/// A helper's life: waits for each round, takes part in it, until stopped.
+fn helper(sh: &CrewShared, k: usize) {
+    let mut seen = 0;
+    loop {
+        let since = std::time::Instant::now();
+        loop {
+            if sh.stop.load(Acquire) {
+                return;
+            }
+            let round = sh.round.load(Acquire);
+            if round != seen {
+                seen = round;
+                break;
+            }
+            if since.elapsed() < CREW_SPIN {
+                std::hint::spin_loop();
+                continue;
+            }
+            sh.sleeping[k].store(true, SeqCst);
+            if sh.round.load(SeqCst) == seen && !sh.stop.load(SeqCst) {
+                std::thread::park();
+            }
+            sh.sleeping[k].store(false, SeqCst);
+        }
+        let job = *sh.job.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(job) = job {
+            work(sh, job);
+        }
+    }
+}
+
+/// Takes items of `job`'s round while there are any left and the round is still on.
+fn work(sh: &CrewShared, job: CrewJob) {
+    loop {
+        let next = sh.next.load(Acquire);
+        let (round, item) = ((next >> 32) as u32, next as u32 as usize);
+        if round != job.round || item >= job.len {
+            return;
+        }
+        if sh.next.compare_exchange_weak(next, next + 1, AcqRel, Relaxed).is_err() {
+            continue;
+        }
+        // SAFETY: the item was claimed in its round, which lasts until it is finished.
+        let f = unsafe { &*job.f };
+        match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(item))) {
+            Ok(n) => {
+                sh.sum.fetch_add(n, SeqCst);
+            }
+            Err(_) => sh.panicked.store(true, SeqCst),
+        }
+        sh.finished.fetch_add(1, Release);
+    }
 }
 
 #[cfg(test)]
@@ -111,6 +303,55 @@ mod tests {
             let here = std::thread::current().id();
             assert_eq!(on_pool(|| std::thread::current().id()), here);
         });
+    }
+
+    #[test]
+    fn a_crew_runs_each_item_of_each_round_once_and_sums_them() {
+        for helpers in [0, 1, 3] {
+            with_crew(helpers, |crew| {
+                assert_eq!(crew.helpers(), helpers);
+                for (round, len) in [0, 1, 2, 7, 64, 3, 1000].into_iter().enumerate() {
+                    let runs: Vec<AtomicUsize> = (0..len).map(|_| AtomicUsize::new(0)).collect();
+                    let item = |i: usize| {
+                        runs[i].fetch_add(1, SeqCst);
+                        // Uneven items, so that the helpers and the caller share a round.
+                        std::hint::black_box((0..(i % 5) * 200).sum::<usize>());
+                        i + round
+                    };
+                    let sum = crew.round(len, &item);
+                    assert_eq!(sum, (0..len).map(|i| i + round).sum::<usize>(), "{helpers} helpers, round {round}");
+                    assert!(
+                        runs.iter().all(|n| n.load(SeqCst) == 1),
+                        "{helpers} helpers, round {round}: an item run twice or never"
+                    );
+                }
+            });
+        }
+    }
+
+    #[test]
+    fn a_crew_hands_each_item_of_a_slice_to_one_thread() {
+        let mut items: Vec<usize> = (0..100).collect();
+        let sum = with_crew(1, |crew| {
+            crew.each_mut(&mut items, &|x| {
+                *x += 1000;
+                *x
+            })
+        });
+        assert_eq!(sum, (1000..1100).sum::<usize>());
+        assert!(items.iter().enumerate().all(|(i, &x)| x == i + 1000), "an item changed twice or never");
+    }
+
+    #[test]
+    fn a_crew_item_that_panics_makes_its_round_panic_and_the_crew_stops() {
+        let caught = std::panic::catch_unwind(|| {
+            with_crew(2, |crew| {
+                crew.round(50, &|i| if i == 37 { panic!("item 37") } else { i });
+            })
+        });
+        assert!(caught.is_err(), "the round went on past a panicking item");
+        // A crew after it works.
+        assert_eq!(with_crew(2, |crew| crew.round(4, &|i| i)), 6);
     }
 
     #[test]

@@ -23,13 +23,17 @@
 //! colour, the blocks of a colour work through their lists at once, up to a block's length of
 //! updates each; a neighbour in another block is handed to that block after the colour's turn,
 //! in block order. The blocks depend on the problem, not on the thread count: the same bits on
-//! any. A problem too small or numbered in no spatial order is one block.
+//! any. A problem too small or numbered in no spatial order is one block. The turns run on a
+//! [`Crew`](crate::parallel::Crew) of threads kept for the solve, the longest list first: through
+//! rayon's loops each turn paid a wake-up, and neighbouring blocks, where a pile still moves, went
+//! to one thread.
 //!
 //! The list needs a matrix-free problem (the contacts of each body). Its iterations count sweeps'
 //! worth of contact updates, so `max_iter` bounds the same work as for full sweeps. Under the
 //! natural-map test, which is not a per-contact test, an emptied list that does not meet it halves
 //! the threshold and starts again.
 
+use std::cmp::Reverse;
 use std::collections::VecDeque;
 use std::sync::Arc;
 
@@ -42,7 +46,7 @@ use super::nlgs::{
 };
 use super::stopping::velocity_scale;
 use super::{SolveReport, SolverKind, SolverOptions, StopCriterion};
-use crate::parallel::CHUNK;
+use crate::parallel::{crew_helpers, with_crew, CHUNK};
 use crate::problem::matrix_free::{ContactNeighbours, ContactRows, Levers, SharedSlice, Velocities, NO_BODY};
 use crate::problem::residual::contact_velocity_residual_squared;
 use crate::problem::{ContactProblem, Mat2, MatrixFree};
@@ -226,70 +230,79 @@ pub(super) fn solve(p: &ContactProblem, op: &MatrixFree, opts: &SolverOptions, m
     let (mut unobserved, mut lowered, mut full_sweeps) = (0usize, 0usize, 0usize);
     let everywhere = (MAX_LIST_SHARE * nc as f64) as usize;
     let mut spread = false;
-    'solve: loop {
-        if !spread {
-            let shared = (SharedSlice::new(&mut r), SharedSlice::new(state.body_velocity_mut()));
-            blocks.par_iter_mut().for_each(|b| {
-                for a in b.first..b.end {
-                    if above(&records, a, &shared.0, &shared.1, threshold).is_some() {
-                        b.push(a);
-                    }
-                }
-                b.evaluations += b.end - b.first;
-            });
-        }
-        if spread || blocks.iter().map(|b| b.list.len()).sum::<usize>() > everywhere {
-            spread = false;
-            blocks.iter_mut().for_each(Block::clear);
-            full_sweeps += FULL_SWEEPS;
-            for _ in 0..FULL_SWEEPS {
-                threaded_sweep(op, &Sweep::Blocks(&colours), solves, None, &mut r, state.body_velocity_mut());
-                if monitor.observe(&r, None) {
-                    break 'solve;
-                }
-            }
-            continue;
-        }
-        while blocks.iter().any(|b| !b.list.is_empty()) {
-            for colour in 0..colours.len() {
+    // Helper threads for the turns, kept for the solve.
+    let helpers = if blocks.len() > 1 { crew_helpers() } else { 0 };
+    with_crew(helpers, |crew| {
+        'solve: loop {
+            if !spread {
                 let shared = (SharedSlice::new(&mut r), SharedSlice::new(state.body_velocity_mut()));
-                unobserved += blocks
-                    .par_iter_mut()
-                    .filter(|b| b.colour == colour)
-                    .map(|b| turn(b, threshold, shared, (&records, neighbours)))
-                    .sum::<usize>();
-                // The moved contacts of other blocks, handed over in block order.
-                for k in 0..blocks.len() {
-                    for a in std::mem::take(&mut blocks[k].outbox) {
-                        blocks[owner(a)].push(a);
+                blocks.par_iter_mut().for_each(|b| {
+                    for a in b.first..b.end {
+                        if above(&records, a, &shared.0, &shared.1, threshold).is_some() {
+                            b.push(a);
+                        }
                     }
-                }
-                if records.is_empty() && blocks.iter().map(|b| b.updates).sum::<usize>() >= FAST_PATHS_AFTER * nc {
-                    records = (0..nc).into_par_iter().with_min_len(CHUNK).map(record).collect();
-                    neighbours = op.neighbours();
-                }
-                if blocks.iter().map(|b| b.list.len()).sum::<usize>() > everywhere {
-                    // The error has spread everywhere: full sweeps.
-                    spread = true;
-                    continue 'solve;
-                }
-                while unobserved >= nc {
-                    unobserved -= nc;
+                    b.evaluations += b.end - b.first;
+                });
+            }
+            if spread || blocks.iter().map(|b| b.list.len()).sum::<usize>() > everywhere {
+                spread = false;
+                blocks.iter_mut().for_each(Block::clear);
+                full_sweeps += FULL_SWEEPS;
+                for _ in 0..FULL_SWEEPS {
+                    threaded_sweep(op, &Sweep::Blocks(&colours), solves, None, &mut r, state.body_velocity_mut());
                     if monitor.observe(&r, None) {
                         break 'solve;
                     }
                 }
+                continue;
             }
+            while blocks.iter().any(|b| !b.list.is_empty()) {
+                for colour in 0..colours.len() {
+                    let shared = (SharedSlice::new(&mut r), SharedSlice::new(state.body_velocity_mut()));
+                    // The colour's blocks with a list; on threads the longest first, each to the
+                    // first thread free (where a pile still moves, neighbouring blocks hold the
+                    // work).
+                    let mut busy: Vec<&mut Block> =
+                        blocks.iter_mut().filter(|b| b.colour == colour && !b.list.is_empty()).collect();
+                    if crew.helpers() > 0 {
+                        busy.sort_by_key(|b| Reverse(b.list.len()));
+                    }
+                    let work = (threshold, shared, (&records[..], neighbours));
+                    unobserved += crew.each_mut(&mut busy, &|b| turn(b, work.0, work.1, work.2));
+                    // The moved contacts of other blocks, handed over in block order.
+                    for k in 0..blocks.len() {
+                        for a in std::mem::take(&mut blocks[k].outbox) {
+                            blocks[owner(a)].push(a);
+                        }
+                    }
+                    if records.is_empty() && blocks.iter().map(|b| b.updates).sum::<usize>() >= FAST_PATHS_AFTER * nc {
+                        records = (0..nc).into_par_iter().with_min_len(CHUNK).map(record).collect();
+                        neighbours = op.neighbours();
+                    }
+                    if blocks.iter().map(|b| b.list.len()).sum::<usize>() > everywhere {
+                        // The error has spread everywhere: full sweeps.
+                        spread = true;
+                        continue 'solve;
+                    }
+                    while unobserved >= nc {
+                        unobserved -= nc;
+                        if monitor.observe(&r, None) {
+                            break 'solve;
+                        }
+                    }
+                }
+            }
+            // Every contact is within the threshold: judged now, on a product of its own, which the
+            // final report then reuses (the velocities kept up to date would be a pass cheaper here,
+            // but the report would make that product anyway).
+            if monitor.observe_with_product(&r) {
+                break;
+            }
+            threshold *= 0.5;
+            lowered += 1;
         }
-        // Every contact is within the threshold: judged now, on a product of its own, which the
-        // final report then reuses (the velocities kept up to date would be a pass cheaper here,
-        // but the report would make that product anyway).
-        if monitor.observe_with_product(&r) {
-            break;
-        }
-        threshold *= 0.5;
-        lowered += 1;
-    }
+    });
     let updates: usize = blocks.iter().map(|b| b.updates).sum();
     let evaluations: usize = blocks.iter().map(|b| b.evaluations).sum();
     monitor.note(format!(
