@@ -46,14 +46,19 @@ pub fn parallel(n: usize) -> bool {
 /// `Σ_{k<n} term(k)`, summed per chunk of [`CHUNK`] and then over chunks in order: the same bits
 /// on one thread or many.
 pub fn chunked_sum(n: usize, term: impl Fn(usize) -> f64 + Sync) -> f64 {
-    let chunk_sum = |c: usize| lane_sum(c * CHUNK, ((c + 1) * CHUNK).min(n), &term);
+    chunked_sums(n, |k| [term(k)])[0]
+}
+
+/// [`chunked_sum`] of each of `M` terms in one pass over `k` (each sum the same bits as its own
+/// `chunked_sum`): sums over the same contacts are memory-bound, and one pass reads them once.
+pub fn chunked_sums<const M: usize>(n: usize, term: impl Fn(usize) -> [f64; M] + Sync) -> [f64; M] {
+    let chunk_sums = |c: usize| lane_sums(c * CHUNK, ((c + 1) * CHUNK).min(n), &term);
     let chunks = n.div_ceil(CHUNK);
-    if parallel(n) {
-        let partials: Vec<f64> = (0..chunks).into_par_iter().map(chunk_sum).collect();
-        partials.iter().sum()
-    } else {
-        (0..chunks).map(chunk_sum).sum()
-    }
+    let partials: Vec<[f64; M]> = match parallel(n) {
+        true => (0..chunks).into_par_iter().map(chunk_sums).collect(),
+        false => (0..chunks).map(chunk_sums).collect(),
+    };
+    std::array::from_fn(|m| partials.iter().map(|p| p[m]).sum())
 }
 
 /// `[f(0), …, f(n − 1)]`, on threads when `n` is large: each item its own, in order, so the
@@ -66,22 +71,59 @@ pub fn map_indices<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync + Send) -> V
     }
 }
 
-/// `Σ_{lo≤k<hi} term(k)` in four interleaved partial sums (k mod 4), added at the end: four
-/// independent chains of additions instead of one keep a long sum from waiting on each add.
+/// The first `k < n` whose `check(k)` fails, with its error (checks on threads for large `n`): the
+/// same error on any thread count.
+pub fn first_failure<E: Send>(n: usize, check: impl Fn(usize) -> Result<(), E> + Sync + Send) -> Result<(), E> {
+    let failed = match parallel(n) {
+        true => (0..n).into_par_iter().with_min_len(CHUNK).find_first(|&k| check(k).is_err()),
+        false => (0..n).find(|&k| check(k).is_err()),
+    };
+    failed.map_or(Ok(()), check)
+}
+
+/// The parts one after another in one vector, copied on threads when long: the per-chunk
+/// outputs of a threaded loop joined without one thread copying them all (7 MB of contacts a
+/// step on the 40,000-disk pile).
+pub fn concat<T: Copy + Send + Sync>(parts: &[Vec<T>]) -> Vec<T> {
+    let total = parts.iter().map(Vec::len).sum();
+    if !parallel(total) {
+        return parts.concat();
+    }
+    let mut out: Vec<T> = Vec::with_capacity(total);
+    let mut rest = &mut out.spare_capacity_mut()[..total];
+    let mut slots = Vec::with_capacity(parts.len());
+    for part in parts {
+        let (slot, tail) = std::mem::take(&mut rest).split_at_mut(part.len());
+        slots.push(slot);
+        rest = tail;
+    }
+    slots.into_par_iter().zip(parts).for_each(|(slot, part)| {
+        slot.iter_mut().zip(part).for_each(|(s, x)| {
+            s.write(*x);
+        })
+    });
+    // SAFETY: the slots cover the first `total` elements, and each was written above.
+    unsafe { out.set_len(total) };
+    out
+}
+
+/// `Σ_{lo≤k<hi} term(k)` of each term in four interleaved partial sums (k mod 4), added at the
+/// end: four independent chains of additions instead of one keep a long sum from waiting on
+/// each add.
 #[inline]
-fn lane_sum(lo: usize, hi: usize, term: impl Fn(usize) -> f64) -> f64 {
-    let mut lanes = [0.0; 4];
+fn lane_sums<const M: usize>(lo: usize, hi: usize, term: impl Fn(usize) -> [f64; M]) -> [f64; M] {
+    let mut lanes = [[0.0; M]; 4];
     let mut k = lo;
     while k + 4 <= hi {
         for (j, lane) in lanes.iter_mut().enumerate() {
-            *lane += term(k + j);
+            lane.iter_mut().zip(term(k + j)).for_each(|(l, t)| *l += t);
         }
         k += 4;
     }
     for (j, lane) in lanes.iter_mut().enumerate().take(hi - k) {
-        *lane += term(k + j);
+        lane.iter_mut().zip(term(k + j)).for_each(|(l, t)| *l += t);
     }
-    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3])
+    std::array::from_fn(|m| (lanes[0][m] + lanes[1][m]) + (lanes[2][m] + lanes[3][m]))
 }
 
 /// Runs `f` on a thread of rayon's global pool, or in place when already on a pool's thread.
@@ -364,6 +406,35 @@ mod tests {
         assert!(with_threads(MAX_THREADS + 1, || ()).is_err());
     }
 
+    /// Parts of uneven lengths (some empty), long enough for the threaded copy, come out one
+    /// after another in order on one thread and on four.
+    #[test]
+    fn concat_joins_the_parts_in_order_on_any_thread_count() {
+        let parts: Vec<Vec<u64>> = (0..40u64).map(|p| (0..(p * 37 % 11) * 61).map(|k| p << 32 | k).collect()).collect();
+        let expected: Vec<u64> = parts.iter().flatten().copied().collect();
+        assert!(parallel_on(4, || parallel(expected.len())), "{} items: the threaded path", expected.len());
+        for threads in [1, 4] {
+            assert_eq!(parallel_on(threads, || concat(&parts)), expected, "{threads} thread(s)");
+        }
+        assert!(concat::<u64>(&[]).is_empty() && concat(&[vec![], vec![7u64]]) == [7]);
+    }
+
+    /// The first failing index is named whichever thread finds a later one first.
+    #[test]
+    fn first_failure_names_the_first_failing_index_on_any_thread_count() {
+        let n = 5 * PARALLEL_MIN;
+        let bad = [3 * PARALLEL_MIN + 5, 4 * PARALLEL_MIN, n - 1];
+        let check = |k: usize| if bad.contains(&k) { Err(k) } else { Ok(()) };
+        for threads in [1, 4] {
+            assert_eq!(parallel_on(threads, || first_failure(n, check)), Err(bad[0]), "{threads} thread(s)");
+            assert_eq!(parallel_on(threads, || first_failure(bad[0], check)), Ok(()));
+        }
+    }
+
+    fn parallel_on<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(f)
+    }
+
     #[test]
     fn chunked_sums_are_the_same_bits_on_one_thread_and_on_four() {
         let term = |k: usize| ((k as f64) * 0.731).sin() * 1e-3 + 1.0 / (k as f64 + 1.0);
@@ -373,5 +444,9 @@ mod tests {
         assert_eq!(one.to_bits(), four.to_bits());
         let plain: f64 = (0..n).map(term).sum();
         assert!((one - plain).abs() <= 1e-12 * plain.abs(), "{one} vs {plain}");
+        // Several sums in one pass: each the bits of its own.
+        let square = |k: usize| term(k) * term(k);
+        let both = parallel_on(4, || chunked_sums(n, |k| [square(k), term(k)]));
+        assert_eq!(both.map(f64::to_bits), [chunked_sum(n, square).to_bits(), one.to_bits()]);
     }
 }

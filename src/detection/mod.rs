@@ -9,7 +9,7 @@ pub mod polygon_clip;
 use glam::DVec2;
 use rayon::prelude::*;
 
-use crate::parallel::{parallel, CHUNK};
+use crate::parallel::{concat, parallel, CHUNK};
 
 use crate::world::{Bodies, Periodic, Wall};
 
@@ -88,6 +88,8 @@ pub struct Detector {
     position: Vec<DVec2>,
     images: Vec<(u32, f64)>,
     periodic_pairs: Vec<(u32, u32, f64)>,
+    /// The threaded narrow phase's contacts, a buffer per chunk of bodies.
+    parts: Vec<Vec<DetectedContact>>,
 }
 
 /// The configuration the kept candidate pairs were sought in: a pair closer than `alert` now was
@@ -154,56 +156,69 @@ impl Detector {
             }
         }
         let reach_of = |k: usize| reach.get(k).copied().unwrap_or(0.0);
-        let pair_contacts = |pairs: &[(u32, u32)], out: &mut Vec<DetectedContact>| {
-            for &(i, j) in pairs {
-                let pair_alert = alert + reach_of(i as usize) + reach_of(j as usize);
-                narrow_phase::body_body(bodies, config, (i as usize, j as usize, DVec2::ZERO), pair_alert, out);
-            }
-        };
         let rmax = self.radius.iter().copied().fold(0.0, f64::max);
-        let wall_contacts = |first: usize, last: usize, out: &mut Vec<DetectedContact>| {
-            for (w, wall) in walls.iter().enumerate() {
+        // Each wall's bounds widened by what can reach it: a body outside is not tested.
+        let wall_bounds: Vec<(DVec2, DVec2, f64)> = walls
+            .iter()
+            .enumerate()
+            .map(|(w, wall)| {
                 let wr = wall_reach.get(w).copied().unwrap_or(0.0);
                 let (lo, hi) = wall.aabb();
-                let (lo, hi) = (lo - (rmax + alert + wr), hi + (rmax + alert + wr));
-                for k in first..last {
-                    let p = config.position[k];
-                    if p.x >= lo.x && p.y >= lo.y && p.x <= hi.x && p.y <= hi.y && bodies.inv_mass[k] > 0.0 {
+                (lo - (rmax + alert + wr), hi + (rmax + alert + wr), wr)
+            })
+            .collect();
+        // Bodies first..last with their pairs (the grid's pairs come sorted by (i, j)) and walls,
+        // each body's contacts sorted by key: the bodies' runs in order are the contacts in key
+        // order, with no sort of the whole list.
+        let pairs = &self.pairs;
+        let contacts_of = |first: usize, last: usize, out: &mut Vec<DetectedContact>| {
+            let mut p = pairs.partition_point(|&(i, _)| (i as usize) < first);
+            for k in first..last {
+                let start = out.len();
+                while let Some(&(_, j)) = pairs.get(p).filter(|&&(i, _)| i as usize == k) {
+                    let j = j as usize;
+                    narrow_phase::body_body(
+                        bodies,
+                        config,
+                        (k, j, DVec2::ZERO),
+                        alert + reach_of(k) + reach_of(j),
+                        out,
+                    );
+                    p += 1;
+                }
+                let x = config.position[k];
+                for (w, (wall, &(lo, hi, wr))) in walls.iter().zip(&wall_bounds).enumerate() {
+                    if x.x >= lo.x && x.y >= lo.y && x.x <= hi.x && x.y <= hi.y && bodies.inv_mass[k] > 0.0 {
                         narrow_phase::body_wall(bodies, config, k, w, wall, alert + wr + reach_of(k), out);
                     }
                 }
+                if out.len() > start + 1 {
+                    out[start..].sort_by_key(DetectedContact::key);
+                }
             }
         };
-        let mut out = Vec::with_capacity(self.pairs.len() + bodies.len() / 4);
-        if parallel(self.pairs.len()) {
-            // Chunks on threads; the sort below puts contacts in one order whatever the split.
-            let parts: Vec<Vec<DetectedContact>> = self
-                .pairs
-                .par_chunks(CHUNK)
-                .map(|c| {
-                    let mut part = Vec::with_capacity(c.len());
-                    pair_contacts(c, &mut part);
-                    part
-                })
-                .chain((0..bodies.len().div_ceil(CHUNK)).into_par_iter().map(|c| {
-                    let mut part = Vec::new();
-                    wall_contacts(c * CHUNK, ((c + 1) * CHUNK).min(bodies.len()), &mut part);
-                    part
-                }))
-                .collect();
-            parts.into_iter().for_each(|p| out.extend(p));
+        let n = bodies.len();
+        let mut out = if parallel(self.pairs.len().max(n)) {
+            // Each chunk's contacts in a buffer kept from step to step, then joined on threads.
+            self.parts.resize_with(n.div_ceil(CHUNK), Vec::new);
+            self.parts.par_iter_mut().enumerate().for_each(|(c, part)| {
+                part.clear();
+                contacts_of(c * CHUNK, ((c + 1) * CHUNK).min(n), part);
+            });
+            concat(&self.parts)
         } else {
-            pair_contacts(&self.pairs, &mut out);
-            wall_contacts(0, bodies.len(), &mut out);
+            let mut out = Vec::with_capacity(self.pairs.len() + n / 4);
+            contacts_of(0, n, &mut out);
+            out
+        };
+        if !self.periodic_pairs.is_empty() {
+            for &(i, j, shift) in &self.periodic_pairs {
+                let (i, j) = (i as usize, j as usize);
+                let pair_alert = alert + reach_of(i) + reach_of(j);
+                narrow_phase::body_body(bodies, config, (i, j, DVec2::new(shift, 0.0)), pair_alert, &mut out);
+            }
+            out.sort_by_key(DetectedContact::key);
         }
-        for &(i, j, shift) in &self.periodic_pairs {
-            let (i, j) = (i as usize, j as usize);
-            let pair_alert = alert + reach_of(i) + reach_of(j);
-            narrow_phase::body_body(bodies, config, (i, j, DVec2::new(shift, 0.0)), pair_alert, &mut out);
-        }
-        // The grid's pairs come in (i, j) order: the contacts are a few sorted runs (the pairs',
-        // each wall's), which a stable sort merges rather than moving every contact about.
-        out.sort_by_key(|a| a.key());
         out
     }
 

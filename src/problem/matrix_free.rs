@@ -3,6 +3,7 @@
 //! A product never forms `W`: it scatters impulses to body velocities (`M⁻¹ Bᵀ r`) and gathers
 //! them back at the contacts (`B v`), in O(contacts + bodies).
 
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::sync::{Arc, OnceLock};
 
 use rayon::iter::Either;
@@ -10,7 +11,7 @@ use rayon::prelude::*;
 
 use super::colouring::Colouring;
 use super::{BlockSparse, Mat2};
-use crate::parallel::{map_indices, parallel, CHUNK};
+use crate::parallel::{first_failure, map_indices, parallel, CHUNK};
 
 /// Contact ranges `(first, end)` by colour: blocks of one colour share no moving body.
 pub type BlockColours = Vec<Vec<(usize, usize)>>;
@@ -171,8 +172,9 @@ pub struct MatrixFree {
     /// Empty without rotation.
     pub(crate) levers: Vec<Levers>,
     pub(crate) dofs: Dofs,
-    /// Each body's contacts, built on first use (threaded products, colouring).
-    incidence: OnceLock<Incidence>,
+    /// Each body's contacts, built on first use (threaded products, colouring) or handed in with
+    /// the neighbour table; shared like it.
+    incidence: OnceLock<Arc<Incidence>>,
     /// Each contact's neighbours, built on first use (work lists) or handed in (last step's, when
     /// the contact graph is the same); shared, to keep the operator small and the hand-over free.
     neighbours: OnceLock<Option<Arc<Neighbours>>>,
@@ -193,7 +195,7 @@ pub struct MatrixFree {
 /// The contacts of each body in increasing contact order, with the side the body is on: a
 /// body's velocity summed over this list adds the same terms in the same order as the
 /// sequential scatter, so threaded and sequential products agree to the bit.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Incidence {
     start: Vec<usize>,
     /// `(contact, body is the antagonist j)`.
@@ -340,6 +342,18 @@ impl MatrixFree {
 
     /// Builds the operator for the dofs a scene uses; lever arms are ignored without rotation.
     pub fn with_dofs(bodies: Vec<Body>, contacts: &[Contact], dofs: Dofs) -> Result<Self, String> {
+        Self::from_contacts(bodies, contacts.len(), |a| contacts[a], dofs)
+    }
+
+    /// [`Self::with_dofs`] of the `n` contacts `contact(a)`, made as they are read rather than
+    /// kept (the stepping makes them from the detected contacts): checked and turned into rows
+    /// in one pass on threads, a pass over a few megabytes costing about a millisecond.
+    pub fn from_contacts(
+        bodies: Vec<Body>,
+        n: usize,
+        contact: impl Fn(usize) -> Contact + Sync + Send,
+        dofs: Dofs,
+    ) -> Result<Self, String> {
         for (k, b) in bodies.iter().enumerate() {
             if !(b.inv_mass.is_finite() && b.inv_mass >= 0.0) {
                 return Err(format!("body {k}: inverse mass {} must be finite and >= 0 (mass > 0)", b.inv_mass));
@@ -348,10 +362,8 @@ impl MatrixFree {
                 return Err(format!("body {k}: inverse inertia {} must be finite and >= 0", b.inv_inertia));
             }
         }
-        let mut rows = Vec::with_capacity(contacts.len());
-        let mut levers = Vec::with_capacity(if dofs.rotation { contacts.len() } else { 0 });
-        for (a, c) in contacts.iter().enumerate() {
-            let nb = bodies.len();
+        let nb = bodies.len();
+        let check = |a: usize, c: &Contact| {
             if c.i >= nb || c.j.is_some_and(|j| j >= nb || j == c.i) {
                 return Err(format!("contact {a}: bodies ({}, {:?}) out of range or equal ({nb} bodies)", c.i, c.j));
             }
@@ -359,15 +371,33 @@ impl MatrixFree {
             if !len.is_finite() || (len - 1.0).abs() > 1e-6 {
                 return Err(format!("contact {a}: normal {:?} is not a unit vector", c.normal));
             }
-            let n = [c.normal[0] / len, c.normal[1] / len];
-            rows.push(ContactRows { i: c.i, j: c.j.unwrap_or(NO_BODY), n });
-            if dofs.rotation {
-                if !c.lever_i.iter().chain(&c.lever_j).all(|x| x.is_finite()) {
-                    return Err(format!("contact {a}: lever arm is not finite"));
-                }
-                let t = [-n[1], n[0]];
-                levers.push([cross(c.lever_i, n), cross(c.lever_i, t), cross(c.lever_j, n), cross(c.lever_j, t)]);
+            if dofs.rotation && !c.lever_i.iter().chain(&c.lever_j).all(|x| x.is_finite()) {
+                return Err(format!("contact {a}: lever arm is not finite"));
             }
+            Ok(())
+        };
+        // Built unchecked with a flag raised on a bad contact; the first bad one is then named.
+        let bad = AtomicBool::new(false);
+        let row = |a: usize| {
+            let c = contact(a);
+            if check(a, &c).is_err() {
+                bad.store(true, Relaxed);
+            }
+            let len = (c.normal[0] * c.normal[0] + c.normal[1] * c.normal[1]).sqrt();
+            (ContactRows { i: c.i, j: c.j.unwrap_or(NO_BODY), n: [c.normal[0] / len, c.normal[1] / len] }, c)
+        };
+        let with_levers = |a: usize| {
+            let (rows, c) = row(a);
+            let (n, t) = (rows.n, [-rows.n[1], rows.n[0]]);
+            (rows, [cross(c.lever_i, n), cross(c.lever_i, t), cross(c.lever_j, n), cross(c.lever_j, t)])
+        };
+        let (rows, levers): (Vec<ContactRows>, Vec<Levers>) = match (dofs.rotation, parallel(n)) {
+            (true, true) => (0..n).into_par_iter().with_min_len(CHUNK).map(with_levers).unzip(),
+            (true, false) => (0..n).map(with_levers).unzip(),
+            (false, _) => (map_indices(n, |a| row(a).0), Vec::new()),
+        };
+        if bad.load(Relaxed) {
+            first_failure(n, |a| check(a, &contact(a)))?;
         }
         Ok(Self {
             bodies,
@@ -549,7 +579,20 @@ impl MatrixFree {
 
     /// Each body's contacts (built once).
     pub fn incidence(&self) -> &Incidence {
-        self.incidence.get_or_init(|| Incidence::new(self.bodies.len(), &self.rows))
+        self.incidence.get_or_init(|| Arc::new(Incidence::new(self.bodies.len(), &self.rows)))
+    }
+
+    /// Each body's contacts if built, for the next step's operator (as the neighbour table).
+    pub fn incidence_if_built(&self) -> Option<Arc<Incidence>> {
+        self.incidence.get().cloned()
+    }
+
+    /// Hands in the contacts of each body of an operator whose contacts join the same bodies in
+    /// the same order (checked in debug builds); ignored if built already. Why: a serial pass of
+    /// 1-2 ms a step at 81,000 contacts, before a threaded solve can start.
+    pub fn give_incidence(&self, incidence: Arc<Incidence>) {
+        debug_assert!(Incidence::new(self.bodies.len(), &self.rows) == *incidence);
+        let _ = self.incidence.set(incidence);
     }
 
     /// Contact `a`'s rows of `B` and its lever arms (`None` without rotation), for
@@ -840,6 +883,40 @@ pub(crate) fn disks_in_a_row() -> MatrixFree {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A long row of disks, its contacts checked and built on threads: the rows and levers of one
+    /// thread, and of bad contacts the first named (a later one on another thread is not).
+    #[test]
+    fn contacts_checked_and_built_on_threads_name_the_first_bad_one() {
+        let n = 3 * crate::parallel::PARALLEL_MIN;
+        let bodies = vec![Body::dynamic(1.0, 0.5); n + 1];
+        let contact = |a: usize| {
+            let angle = a as f64 * 0.37;
+            let normal = [angle.cos(), angle.sin()];
+            Contact { i: a + 1, j: Some(a), normal, lever_i: [-normal[0], -normal[1]], lever_j: normal }
+        };
+        let on = |threads: usize, bad: &(dyn Fn(usize) -> Option<Contact> + Sync)| {
+            let build = || MatrixFree::from_contacts(bodies.clone(), n, |a| bad(a).unwrap_or(contact(a)), Dofs::ALL);
+            rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(build)
+        };
+        let (one, two) = (on(1, &|_| None).unwrap(), on(2, &|_| None).unwrap());
+        assert_eq!((one.rows.len(), one.levers.len()), (n, n));
+        assert!(one.rows.iter().zip(&two.rows).all(|(x, y)| x.i == y.i && x.j == y.j && x.n == y.n));
+        assert_eq!(one.levers, two.levers);
+        let at = [2 * n / 3, n / 2, n - 1];
+        let bad = |a: usize| match a {
+            _ if a == at[0] => Some(Contact { normal: [2.0, 0.0], ..contact(a) }),
+            _ if a == at[1] => Some(Contact { j: Some(n + 7), ..contact(a) }),
+            _ if a == at[2] => Some(Contact { lever_i: [f64::NAN, 0.0], ..contact(a) }),
+            _ => None,
+        };
+        for threads in [1, 2] {
+            let e = on(threads, &bad).expect_err("bad contacts");
+            assert!(e.starts_with(&format!("contact {}: bodies", at[1])), "{threads} thread(s): {e}");
+        }
+        let later = |a: usize| bad(a).filter(|_| a != at[1]);
+        assert!(on(2, &later).expect_err("bad").contains("is not a unit vector"));
+    }
 
     /// Contact 0 joins disks 1 (i) and 0 (j): disk 1 touches contacts 0, 1 and its floor 8, disk
     /// 0 contacts 0 and its floor 7. A floor contact's fixed side adds nothing, and a disk made

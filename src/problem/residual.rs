@@ -10,10 +10,10 @@ use super::cone::natural_map;
 use rayon::prelude::*;
 
 use super::{ContactProblem, Mat2};
-use crate::parallel::{chunked_sum, parallel, CHUNK};
+use crate::parallel::{chunked_sums, parallel, CHUNK};
 
 /// Error of `r` given `u = W r + q` (no operator product).
-/// Sums run in fixed chunks ([`chunked_sum`]): the same bits on any number of threads.
+/// Sums run in fixed chunks ([`chunked_sums`]): the same bits on any number of threads.
 pub fn natural_map_error(q: &[f64], mu: &[f64], r: &[f64], u: &[f64]) -> f64 {
     natural_map_error_rolling(q, mu, &[], r, u)
 }
@@ -40,16 +40,22 @@ pub fn natural_map_error_gapped(q: &[f64], mu: &[f64], rolling: &[f64], gap_rate
         let f = rr - (rr - u[2 * nc + a]).clamp(-bound, bound);
         f * f
     };
-    let sum = chunked_sum(nc, |a| {
-        let f = natural_map([r[2 * a], r[2 * a + 1]], [u[2 * a], u[2 * a + 1]], mu[a]);
-        f[0] * f[0] + f[1] * f[1] + roll(a)
-    });
-    let norm = |x: &[f64], gap: &[f64]| {
-        let tail = |a: usize| if rolling.is_empty() { 0.0 } else { x[2 * nc + a] * x[2 * nc + a] };
-        let normal = |a: usize| x[2 * a] - gap.get(a).copied().unwrap_or(0.0);
-        chunked_sum(nc, |a| normal(a) * normal(a) + x[2 * a + 1] * x[2 * a + 1] + tail(a)).sqrt()
+    let norm_term = |x: &[f64], gap: &[f64], a: usize| {
+        let tail = if rolling.is_empty() { 0.0 } else { x[2 * nc + a] * x[2 * nc + a] };
+        let normal = x[2 * a] - gap.get(a).copied().unwrap_or(0.0);
+        normal * normal + x[2 * a + 1] * x[2 * a + 1] + tail
     };
-    let scale = norm(q, gap_rate).max(norm(r, &[])).max(norm(u, gap_rate));
+    // The residual and the three norms in one pass over the contacts.
+    let [sum, q_norm, r_norm, u_norm] = chunked_sums(nc, |a| {
+        let f = natural_map([r[2 * a], r[2 * a + 1]], [u[2 * a], u[2 * a + 1]], mu[a]);
+        [
+            f[0] * f[0] + f[1] * f[1] + roll(a),
+            norm_term(q, gap_rate, a),
+            norm_term(r, &[], a),
+            norm_term(u, gap_rate, a),
+        ]
+    });
+    let scale = q_norm.sqrt().max(r_norm.sqrt()).max(u_norm.sqrt());
     if !(sum.is_finite() && scale.is_finite()) {
         return rescaled([q, gap_rate, r, u], |[q, gap, r, u]| natural_map_error_gapped(q, mu, rolling, gap, r, u));
     }

@@ -22,13 +22,14 @@ use super::checks::check_state;
 use super::projection::{end_of_step_gaps, project_positions, targets};
 use super::simulation::{ContactState, Simulation, StepError, StepReport};
 use crate::detection::{Antagonist, Configuration, DetectedContact, Detector};
-use crate::parallel::map_indices;
+use crate::parallel::{map_indices, parallel, CHUNK};
 use crate::problem::colouring::Colouring;
 use crate::problem::cone::status_of;
 use crate::problem::matrix_free::Dofs;
 use crate::problem::{Body, Contact, ContactProblem, Delassus, MatrixFree};
 use crate::solvers::StopReason;
 use crate::world::{Wall, World};
+use rayon::prelude::*;
 
 /// Generalised velocity vector ([`Dofs::per_body`] entries per body) of the bodies' velocities.
 fn stacked_velocities(world: &World, dofs: Dofs) -> Vec<f64> {
@@ -51,20 +52,19 @@ fn stacked_velocities(world: &World, dofs: Dofs) -> Vec<f64> {
 fn operator(world: &World, contacts: &[DetectedContact], dofs: Dofs) -> Result<MatrixFree, String> {
     let b = &world.bodies;
     let position = &b.position;
-    let bodies: Vec<Body> = (0..b.len())
-        .map(|k| Body { inv_mass: b.inv_mass[k], inv_inertia: if dofs.rotation { b.inv_inertia[k] } else { 0.0 } })
-        .collect();
-    let rows: Vec<Contact> = contacts
-        .iter()
-        .map(|c| {
-            let (j, lever_j) = match c.other {
-                Antagonist::Body(j) => (Some(j), (c.point - position[j] - c.image).to_array()),
-                Antagonist::Wall(_) => (None, [0.0; 2]),
-            };
-            Contact { i: c.i, j, normal: c.normal.to_array(), lever_i: (c.point - position[c.i]).to_array(), lever_j }
-        })
-        .collect();
-    let op = MatrixFree::with_dofs(bodies, &rows, dofs)?;
+    let bodies = map_indices(b.len(), |k| Body {
+        inv_mass: b.inv_mass[k],
+        inv_inertia: if dofs.rotation { b.inv_inertia[k] } else { 0.0 },
+    });
+    let contact = |a: usize| {
+        let c = &contacts[a];
+        let (j, lever_j) = match c.other {
+            Antagonist::Body(j) => (Some(j), (c.point - position[j] - c.image).to_array()),
+            Antagonist::Wall(_) => (None, [0.0; 2]),
+        };
+        Contact { i: c.i, j, normal: c.normal.to_array(), lever_i: (c.point - position[c.i]).to_array(), lever_j }
+    };
+    let op = MatrixFree::from_contacts(bodies, contacts.len(), contact, dofs)?;
     if !world.effects.rolling_resistance {
         return Ok(op);
     }
@@ -175,49 +175,71 @@ fn local_problem(
     let effects = world.effects;
     let nc = contacts.len();
     let unknowns = op.unknowns();
-    let mut q = vec![0.0; unknowns];
-    op.contact_velocities(v_free, &mut q);
-    let mut u_begin = vec![0.0; unknowns];
-    op.contact_velocities(v_begin, &mut u_begin);
-    let mut mu = vec![0.0; nc];
-    let mut rolling = if op.has_rolling() { vec![0.0; nc] } else { Vec::new() };
-    let mut shift = if effects.cohesion { vec![0.0; unknowns] } else { Vec::new() };
-    let mut gap_rate = vec![0.0; nc];
-    for (a, c) in contacts.iter().enumerate() {
-        let (other_material, wall_velocity, wall_spin) = match c.other {
-            Antagonist::Body(j) => (world.bodies.material[j] as usize, DVec2::ZERO, 0.0),
-            Antagonist::Wall(w) => {
-                let wall = &world.walls[w];
-                match effects.moving_walls {
-                    true => (wall.material, wall.velocity_at(c.point), wall.spin),
-                    false => (wall.material, DVec2::ZERO, 0.0),
-                }
+    // The antagonist's material, and a moving wall's velocity at the contact point and its spin.
+    let antagonist = |c: &DetectedContact| match c.other {
+        Antagonist::Body(j) => (world.bodies.material[j] as usize, DVec2::ZERO, 0.0),
+        Antagonist::Wall(w) => {
+            let wall = &world.walls[w];
+            match effects.moving_walls {
+                true => (wall.material, wall.velocity_at(c.point), wall.spin),
+                false => (wall.material, DVec2::ZERO, 0.0),
             }
-        };
-        let law = world.materials.interaction(world.bodies.material[c.i] as usize, other_material);
-        if let Some(eta) = rolling.get_mut(a) {
-            // Rolling relative to a turning wall: u_r = R (ω_i − ω_wall).
-            q[2 * nc + a] -= op.rolling_radius(a) * wall_spin;
-            *eta = law.rolling_resistance;
         }
-        let (n, t) = (c.normal, c.normal.perp());
-        q[2 * a] -= n.dot(wall_velocity);
-        if effects.friction {
-            q[2 * a + 1] -= t.dot(wall_velocity);
-            mu[a] = law.friction;
+    };
+    let law_of =
+        |c: &DetectedContact| world.materials.interaction(world.bodies.material[c.i] as usize, antagonist(c).0);
+    // The (n, t) rows: q = B v_free less the wall's velocity, plus the gap term or the impact,
+    // with μ and g̃/h, contacts from `first` on, in one pass (they are memory-bound).
+    let rows = |first: usize, q: &mut [f64], mu: &mut [f64], gap_rate: &mut [f64]| {
+        for (k, (mu, gap_rate)) in mu.iter_mut().zip(gap_rate).enumerate() {
+            let (a, c) = (first + k, &contacts[first + k]);
+            let (_, wall_velocity, _) = antagonist(c);
+            let law = law_of(c);
+            let (n, t) = (c.normal, c.normal.perp());
+            let u_free = op.gather_one(a, v_free);
+            let mut qn = u_free[0] - n.dot(wall_velocity);
+            q[2 * k + 1] = u_free[1];
+            if effects.friction {
+                q[2 * k + 1] -= t.dot(wall_velocity);
+                *mu = law.friction;
+            }
+            // Newton's impact law for a contact that closes within this step, u_n⁺ ≥ −e u_n⁻;
+            // otherwise the gap term: an open contact acts only if it would close within the step.
+            let approach = op.gather_one(a, v_begin)[0] - n.dot(wall_velocity);
+            let predicted_gap = c.gap + theta * h * approach;
+            if effects.restitution && law.restitution > 0.0 && approach < 0.0 && c.gap + h * approach <= 0.0 {
+                qn += law.restitution * approach;
+            } else if predicted_gap > 0.0 {
+                *gap_rate = predicted_gap / h;
+                qn += *gap_rate;
+            }
+            q[2 * k] = qn;
         }
-        // Newton's impact law for a contact that closes within this step, u_n⁺ ≥ −e u_n⁻;
-        // otherwise the gap term: an open contact acts only if it would close within the step.
-        let approach = u_begin[2 * a] - n.dot(wall_velocity);
-        let predicted_gap = c.gap + theta * h * approach;
-        if effects.restitution && law.restitution > 0.0 && approach < 0.0 && c.gap + h * approach <= 0.0 {
-            q[2 * a] += law.restitution * approach;
-        } else if predicted_gap > 0.0 {
-            gap_rate[a] = predicted_gap / h;
-            q[2 * a] += gap_rate[a];
-        }
-        if effects.cohesion {
-            shift[2 * a] = law.cohesion;
+    };
+    let mut q = vec![0.0; unknowns];
+    let mut mu = vec![0.0; nc];
+    let mut gap_rate = vec![0.0; nc];
+    if parallel(nc) {
+        q[..2 * nc]
+            .par_chunks_mut(2 * CHUNK)
+            .zip(mu.par_chunks_mut(CHUNK))
+            .zip(gap_rate.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(chunk, ((q, mu), gap_rate))| rows(chunk * CHUNK, q, mu, gap_rate));
+    } else {
+        rows(0, &mut q[..2 * nc], &mut mu, &mut gap_rate);
+    }
+    // Rolling rows, relative to a turning wall: u_r = R (ω_i − ω_wall).
+    let mut rolling = if op.has_rolling() { vec![0.0; nc] } else { Vec::new() };
+    for (a, eta) in rolling.iter_mut().enumerate() {
+        let c = &contacts[a];
+        q[2 * nc + a] = op.gather_rolling(a, v_free) - op.rolling_radius(a) * antagonist(c).2;
+        *eta = law_of(c).rolling_resistance;
+    }
+    let mut shift = if effects.cohesion { vec![0.0; unknowns] } else { Vec::new() };
+    if effects.cohesion {
+        for (a, c) in contacts.iter().enumerate() {
+            shift[2 * a] = law_of(c).cohesion;
         }
     }
     // Cohesion: solve for r' = r + c e_n in the plain cone, q' = q − W c e_n.
@@ -343,6 +365,9 @@ pub(super) fn assemble(sim: &mut Simulation, step: usize) -> Result<Assembled, S
     let world = &sim.world;
     let op = operator(world, &assembled.detected, dofs).map_err(|message| StepError::Problem { step, message })?;
     let recalled = sim.warm_start.recall(&assembled.detected, &op.moving(), op.has_rolling(), h);
+    if let Some(incidence) = recalled.incidence {
+        op.give_incidence(incidence);
+    }
     if let Some(kept) = &recalled.colours {
         op.give_colouring(Colouring::repaired(&op, kept));
     }

@@ -1,14 +1,14 @@
 //! What a step hands to the next: each contact's impulse (the solve's warm start) and, when the
 //! solve coloured the contact graph (threaded or GPU Gauss–Seidel), each contact's colour, so
-//! the next colouring is repaired rather than rebuilt, and the work list's neighbour table and
-//! the threaded sweeps' blocks by colour, reused while the contacts are the same. Contacts are
-//! matched by (body, antagonist, feature).
+//! the next colouring is repaired rather than rebuilt, and the work list's neighbour table, the
+//! threaded sweeps' blocks by colour and each body's contacts, reused while the contacts are the
+//! same. Contacts are matched by (body, antagonist, feature).
 
 use crate::detection::{Antagonist, DetectedContact};
 use std::sync::Arc;
 
 use crate::problem::colouring::Colouring;
-use crate::problem::matrix_free::{BlockColours, MatrixFree, Neighbours};
+use crate::problem::matrix_free::{BlockColours, Incidence, MatrixFree, Neighbours};
 
 pub(crate) type Key = (usize, Antagonist, u64);
 
@@ -27,6 +27,8 @@ pub struct WarmStart {
     /// Last step's blocks by colour for the threaded sweeps, when its solve cut them: they serve
     /// a step with the same contacts, as the table does.
     block_colours: Option<Arc<BlockColours>>,
+    /// Last step's contacts of each body, when built: they serve a step with the same contacts.
+    incidence: Option<Arc<Incidence>>,
     /// Which bodies could move last step (empty when nothing above is kept): kept colours stay
     /// proper, and a kept table right, only while the same bodies move.
     moving: Vec<bool>,
@@ -48,6 +50,8 @@ pub struct Recalled {
     pub neighbours: Option<Arc<Neighbours>>,
     /// Last step's blocks by colour, under the same conditions.
     pub block_colours: Option<Arc<BlockColours>>,
+    /// Last step's contacts of each body, under the same conditions.
+    pub incidence: Option<Arc<Incidence>>,
 }
 
 /// `key` after body `removed` is removed: `None` when it involves that body, else with the
@@ -73,6 +77,7 @@ impl WarmStart {
         self.colours = None;
         self.neighbours = None;
         self.block_colours = None;
+        self.incidence = None;
     }
 
     /// Remembers `impulses` (2 per contact, then 1 per contact with rolling resistance) of
@@ -91,7 +96,11 @@ impl WarmStart {
         self.colours = op.and_then(MatrixFree::colouring_if_built).map(Colouring::colour_of_each);
         self.neighbours = op.and_then(MatrixFree::neighbours_if_built);
         self.block_colours = op.and_then(MatrixFree::block_colours_if_built);
-        let kept = self.colours.is_some() || self.neighbours.is_some() || self.block_colours.is_some();
+        self.incidence = op.and_then(MatrixFree::incidence_if_built);
+        let kept = self.colours.is_some()
+            || self.neighbours.is_some()
+            || self.block_colours.is_some()
+            || self.incidence.is_some();
         self.moving = match op {
             Some(op) if kept => op.moving(),
             _ => Vec::new(),
@@ -137,7 +146,8 @@ impl WarmStart {
         let same_contacts = matched == nc && self.entries.len() == nc;
         let neighbours = self.neighbours.clone().filter(|_| same_contacts && same_bodies);
         let block_colours = self.block_colours.clone().filter(|_| same_contacts && same_bodies);
-        Recalled { impulses, matched, colours: kept, neighbours, block_colours }
+        let incidence = self.incidence.clone().filter(|_| same_contacts && same_bodies);
+        Recalled { impulses, matched, colours: kept, neighbours, block_colours, incidence }
     }
 
     /// The entries (key and impulse, sorted by key): what a checkpoint saves, with
@@ -167,7 +177,7 @@ impl WarmStart {
             }
             None => (None, Vec::new()),
         };
-        Self { entries, colours, neighbours: None, block_colours: None, moving, time_step }
+        Self { entries, colours, neighbours: None, block_colours: None, incidence: None, moving, time_step }
     }
 
     /// Contacts remembered.
@@ -208,10 +218,13 @@ mod tests {
         assert!(op.neighbours().tabled());
         let table = op.neighbours_if_built().expect("built");
         let blocks = op.block_colours_with(|_| Some(vec![vec![(0, 3)]])).expect("cut");
+        let incidence = op.incidence_if_built().expect("built with the table");
         warm.remember(&contacts, &[0.0; 6], Some(&op), 1e-3);
         let recalled = warm.recall(&contacts, &moving, false, 1e-3);
         assert!(recalled.neighbours.is_some_and(|t| Arc::ptr_eq(&t, &table)));
         assert!(recalled.block_colours.is_some_and(|b| Arc::ptr_eq(&b, &blocks)));
+        assert!(recalled.incidence.is_some_and(|i| Arc::ptr_eq(&i, &incidence)));
+        assert!(warm.recall(&contacts[..2], &moving, false, 1e-3).incidence.is_none(), "a contact gone");
         assert!(warm.recall(&contacts[..2], &moving, false, 1e-3).neighbours.is_none(), "a contact gone");
         assert!(warm.recall(&contacts[..2], &moving, false, 1e-3).block_colours.is_none(), "a contact gone");
         let mut more = contacts.clone();
@@ -223,6 +236,7 @@ mod tests {
         assert!(warm.recall(&contacts, &pinned, false, 1e-3).block_colours.is_none(), "a body pinned");
         warm.forget_body(1);
         assert!(warm.recall(&contacts, &moving, false, 1e-3).neighbours.is_none(), "a body removed");
+        assert!(warm.recall(&contacts, &moving, false, 1e-3).incidence.is_none(), "a body removed");
     }
 
     /// An impulse is a force times the step: a step of another length starts from last step's
