@@ -363,11 +363,12 @@ impl MatrixFree {
             }
         }
         let nb = bodies.len();
-        let check = |a: usize, c: &Contact| {
+        let normal_length = |c: &Contact| (c.normal[0] * c.normal[0] + c.normal[1] * c.normal[1]).sqrt();
+        // Contact `a`, whose normal is `len` long.
+        let check = |a: usize, c: &Contact, len: f64| {
             if c.i >= nb || c.j.is_some_and(|j| j >= nb || j == c.i) {
                 return Err(format!("contact {a}: bodies ({}, {:?}) out of range or equal ({nb} bodies)", c.i, c.j));
             }
-            let len = (c.normal[0] * c.normal[0] + c.normal[1] * c.normal[1]).sqrt();
             if !len.is_finite() || (len - 1.0).abs() > 1e-6 {
                 return Err(format!("contact {a}: normal {:?} is not a unit vector", c.normal));
             }
@@ -380,10 +381,10 @@ impl MatrixFree {
         let bad = AtomicBool::new(false);
         let row = |a: usize| {
             let c = contact(a);
-            if check(a, &c).is_err() {
+            let len = normal_length(&c);
+            if check(a, &c, len).is_err() {
                 bad.store(true, Relaxed);
             }
-            let len = (c.normal[0] * c.normal[0] + c.normal[1] * c.normal[1]).sqrt();
             (ContactRows { i: c.i, j: c.j.unwrap_or(NO_BODY), n: [c.normal[0] / len, c.normal[1] / len] }, c)
         };
         let with_levers = |a: usize| {
@@ -397,7 +398,10 @@ impl MatrixFree {
             (false, _) => (map_indices(n, |a| row(a).0), Vec::new()),
         };
         if bad.load(Relaxed) {
-            first_failure(n, |a| check(a, &contact(a)))?;
+            first_failure(n, |a| {
+                let c = contact(a);
+                check(a, &c, normal_length(&c))
+            })?;
         }
         Ok(Self {
             bodies,

@@ -186,15 +186,15 @@ fn local_problem(
             }
         }
     };
-    let law_of =
-        |c: &DetectedContact| world.materials.interaction(world.bodies.material[c.i] as usize, antagonist(c).0);
+    let law_with =
+        |c: &DetectedContact, other: usize| world.materials.interaction(world.bodies.material[c.i] as usize, other);
     // The (n, t) rows: q = B v_free less the wall's velocity, plus the gap term or the impact,
     // with μ and g̃/h, contacts from `first` on, in one pass (they are memory-bound).
     let rows = |first: usize, q: &mut [f64], mu: &mut [f64], gap_rate: &mut [f64]| {
         for (k, (mu, gap_rate)) in mu.iter_mut().zip(gap_rate).enumerate() {
             let (a, c) = (first + k, &contacts[first + k]);
-            let (_, wall_velocity, _) = antagonist(c);
-            let law = law_of(c);
+            let (other, wall_velocity, _) = antagonist(c);
+            let law = law_with(c, other);
             let (n, t) = (c.normal, c.normal.perp());
             let u_free = op.gather_one(a, v_free);
             let mut qn = u_free[0] - n.dot(wall_velocity);
@@ -233,13 +233,14 @@ fn local_problem(
     let mut rolling = if op.has_rolling() { vec![0.0; nc] } else { Vec::new() };
     for (a, eta) in rolling.iter_mut().enumerate() {
         let c = &contacts[a];
-        q[2 * nc + a] = op.gather_rolling(a, v_free) - op.rolling_radius(a) * antagonist(c).2;
-        *eta = law_of(c).rolling_resistance;
+        let (other, _, wall_spin) = antagonist(c);
+        q[2 * nc + a] = op.gather_rolling(a, v_free) - op.rolling_radius(a) * wall_spin;
+        *eta = law_with(c, other).rolling_resistance;
     }
     let mut shift = if effects.cohesion { vec![0.0; unknowns] } else { Vec::new() };
     if effects.cohesion {
         for (a, c) in contacts.iter().enumerate() {
-            shift[2 * a] = law_of(c).cohesion;
+            shift[2 * a] = law_with(c, antagonist(c).0).cohesion;
         }
     }
     // Cohesion: solve for r' = r + c e_n in the plain cone, q' = q − W c e_n.
