@@ -5,7 +5,10 @@
 //! same. Contacts are matched by (body, antagonist, feature).
 
 use crate::detection::{Antagonist, DetectedContact};
+use rayon::prelude::*;
 use std::sync::Arc;
+
+use crate::parallel::CHUNK;
 
 use crate::problem::colouring::Colouring;
 use crate::problem::matrix_free::{BlockColours, Incidence, MatrixFree, Neighbours};
@@ -89,8 +92,12 @@ impl WarmStart {
         self.time_step = h;
         let nc = contacts.len();
         let rolling = |a: usize| impulses.get(2 * nc + a).copied().unwrap_or(0.0);
-        self.entries.extend(
-            contacts.iter().enumerate().map(|(a, c)| (c.key(), [impulses[2 * a], impulses[2 * a + 1], rolling(a)])),
+        self.entries.par_extend(
+            contacts
+                .par_iter()
+                .enumerate()
+                .with_min_len(CHUNK)
+                .map(|(a, c)| (c.key(), [impulses[2 * a], impulses[2 * a + 1], rolling(a)])),
         );
         debug_assert!(self.entries.windows(2).all(|w| w[0].0 <= w[1].0));
         self.colours = op.and_then(MatrixFree::colouring_if_built).map(Colouring::colour_of_each);
@@ -114,33 +121,52 @@ impl WarmStart {
         let mut impulses = vec![0.0; if rolling { 3 * nc } else { 2 * nc }];
         let same_bodies = self.moving == moving;
         let colours = self.colours.as_ref().filter(|_| same_bodies);
-        let mut kept = colours.map(|_| vec![None; contacts.len()]);
-        let mut matched = 0;
-        // Both lists are sorted by key: one merge.
-        let mut e = 0;
-        for (a, c) in contacts.iter().enumerate() {
-            let key = c.key();
-            while e < self.entries.len() && self.entries[e].0 < key {
-                e += 1;
-            }
-            if e < self.entries.len() && self.entries[e].0 == key {
-                impulses[2 * a] = self.entries[e].1[0];
-                impulses[2 * a + 1] = self.entries[e].1[1];
-                if rolling {
-                    impulses[2 * nc + a] = self.entries[e].1[2];
-                }
-                if let (Some(kept), Some(colours)) = (kept.as_mut(), colours) {
-                    kept[a] = Some(colours[e]);
-                }
-                matched += 1;
-                // A key seen twice (two features alike) pairs up in order, never shares a colour.
-                e += 1;
-            }
+        let mut kept = colours.map(|_| vec![None; nc]);
+        // An impulse is a force times the step: recalled at the new step's.
+        let scale = if self.time_step > 0.0 && self.time_step != h { h / self.time_step } else { 1.0 };
+        // Both lists are sorted by key: one merge, in chunks of contacts on threads, each chunk
+        // writing its own share of the outputs.
+        let (mut sliding, mut rolls) = impulses.split_at_mut(2 * nc);
+        let mut kept_rest = kept.as_deref_mut().unwrap_or_default();
+        let mut chunks = Vec::new();
+        for (first, end) in Self::chunks_of(contacts) {
+            let n = end - first;
+            let part;
+            (part, sliding) = std::mem::take(&mut sliding).split_at_mut(2 * n);
+            let roll;
+            (roll, rolls) = std::mem::take(&mut rolls).split_at_mut(if rolling { n } else { 0 });
+            let kept_part;
+            (kept_part, kept_rest) = std::mem::take(&mut kept_rest).split_at_mut(if colours.is_some() { n } else { 0 });
+            chunks.push((first, end, part, roll, kept_part));
         }
-        if self.time_step > 0.0 && self.time_step != h {
-            let scale = h / self.time_step;
-            impulses.iter_mut().for_each(|r| *r *= scale);
-        }
+        let matched = chunks
+            .into_par_iter()
+            .map(|(first, end, part, roll, kept_part)| {
+                let mut e = self.entries.partition_point(|entry| entry.0 < contacts[first].key());
+                let mut matched = 0;
+                for (k, c) in contacts[first..end].iter().enumerate() {
+                    let key = c.key();
+                    while e < self.entries.len() && self.entries[e].0 < key {
+                        e += 1;
+                    }
+                    if e < self.entries.len() && self.entries[e].0 == key {
+                        let entry = &self.entries[e].1;
+                        (part[2 * k], part[2 * k + 1]) = (entry[0] * scale, entry[1] * scale);
+                        if let Some(r) = roll.get_mut(k) {
+                            *r = entry[2] * scale;
+                        }
+                        if let (Some(kept), Some(colours)) = (kept_part.get_mut(k), colours) {
+                            *kept = Some(colours[e]);
+                        }
+                        matched += 1;
+                        // A key seen twice (two features alike) pairs up in order, never shares
+                        // a colour.
+                        e += 1;
+                    }
+                }
+                matched
+            })
+            .sum::<usize>();
         // Every contact matched an entry and every entry a contact: the same keys in the same
         // order (the merge matches in increasing order), so the same bodies in each contact.
         let same_contacts = matched == nc && self.entries.len() == nc;
@@ -148,6 +174,26 @@ impl WarmStart {
         let block_colours = self.block_colours.clone().filter(|_| same_contacts && same_bodies);
         let incidence = self.incidence.clone().filter(|_| same_contacts && same_bodies);
         Recalled { impulses, matched, colours: kept, neighbours, block_colours, incidence }
+    }
+
+    /// `contacts` (sorted by key) cut into chunks `[first, end)` of about [`CHUNK`] for a threaded
+    /// merge with the entries, each chunk starting where the entries reach its first key. A chunk
+    /// never splits a run of equal keys (two features alike): they pair up with their entries
+    /// in order, so a key never matches twice.
+    fn chunks_of(contacts: &[DetectedContact]) -> Vec<(usize, usize)> {
+        let nc = contacts.len();
+        let mut starts: Vec<usize> = (0..nc)
+            .step_by(CHUNK)
+            .map(|mut a| {
+                while a > 0 && a < nc && contacts[a - 1].key() == contacts[a].key() {
+                    a += 1;
+                }
+                a
+            })
+            .chain([nc])
+            .collect();
+        starts.dedup();
+        starts.windows(2).map(|w| (w[0], w[1])).collect()
     }
 
     /// The entries (key and impulse, sorted by key): what a checkpoint saves, with
@@ -237,6 +283,49 @@ mod tests {
         warm.forget_body(1);
         assert!(warm.recall(&contacts, &moving, false, 1e-3).neighbours.is_none(), "a body removed");
         assert!(warm.recall(&contacts, &moving, false, 1e-3).incidence.is_none(), "a body removed");
+    }
+
+    /// Recalled on threads in chunks of contacts, each contact gets the entry one merge of the
+    /// two sorted lists gives it: the k-th contact of a key the k-th entry of that key, also
+    /// where a run of equal keys (two features alike) straddles a chunk's start.
+    #[test]
+    fn impulses_and_colours_are_recalled_in_chunks_as_by_one_merge() {
+        // Bodies 0..2,500 against a wall, body 1,022's contact four times over (contacts
+        // 1,022-1,025, across the chunk that starts at 1,024); entries for the even bodies, two
+        // for body 1,022, and some for bodies no contact has.
+        let copies = |i: usize| if i == CHUNK - 2 { 4 } else { 1 };
+        let contacts: Vec<DetectedContact> =
+            (0..2_500).flat_map(|i| (0..copies(i)).map(move |_| contact(i, Antagonist::Wall(0)))).collect();
+        let entry_copies = |i: usize| if i == CHUNK - 2 { 2 } else { usize::from(i.is_multiple_of(2)) };
+        let keys: Vec<Key> = (0..3_000)
+            .step_by(1)
+            .flat_map(|i| (0..entry_copies(i)).map(move |_| (i, Antagonist::Wall(0), 0)))
+            .collect();
+        let entries: Vec<Entry> =
+            keys.iter().enumerate().map(|(e, &k)| (k, [e as f64, 0.5 * e as f64, -(e as f64)])).collect();
+        let colours: Vec<u32> = (0..entries.len() as u32).map(|e| e % 7).collect();
+        let warm = WarmStart::from_parts(entries.clone(), Some((colours.clone(), vec![true; 3_000])), 1e-3);
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap();
+        let recalled = pool.install(|| warm.recall(&contacts, &[true; 3_000], true, 1e-3));
+        // The reference: the k-th contact of a key takes the k-th entry of that key.
+        let mut seen = std::collections::HashMap::new();
+        let nc = contacts.len();
+        let mut matched = 0;
+        for (a, c) in contacts.iter().enumerate() {
+            let k = seen.entry(c.key()).or_insert(0);
+            let entry = keys.iter().enumerate().filter(|(_, &key)| key == c.key()).nth(*k).map(|(e, _)| e);
+            *k += 1;
+            let (want, colour) = match entry {
+                Some(e) => (entries[e].1, Some(colours[e])),
+                None => ([0.0; 3], None),
+            };
+            matched += usize::from(entry.is_some());
+            let got = [recalled.impulses[2 * a], recalled.impulses[2 * a + 1], recalled.impulses[2 * nc + a]];
+            assert_eq!(got, want, "contact {a} of body {}", c.i);
+            assert_eq!(recalled.colours.as_ref().unwrap()[a], colour, "contact {a}'s colour");
+        }
+        assert_eq!(recalled.matched, matched);
+        assert_eq!(matched, 1_250 + 1, "the even bodies' contacts and body 1,022's second");
     }
 
     /// An impulse is a force times the step: a step of another length starts from last step's
