@@ -90,13 +90,7 @@ pub fn concat<T: Copy + Send + Sync>(parts: &[Vec<T>]) -> Vec<T> {
         return parts.concat();
     }
     let mut out: Vec<T> = Vec::with_capacity(total);
-    let mut rest = &mut out.spare_capacity_mut()[..total];
-    let mut slots = Vec::with_capacity(parts.len());
-    for part in parts {
-        let (slot, tail) = std::mem::take(&mut rest).split_at_mut(part.len());
-        slots.push(slot);
-        rest = tail;
-    }
+    let slots = split_lengths(&mut out.spare_capacity_mut()[..total], parts.iter().map(Vec::len));
     slots.into_par_iter().zip(parts).for_each(|(slot, part)| {
         slot.iter_mut().zip(part).for_each(|(s, x)| {
             s.write(*x);
@@ -105,6 +99,19 @@ pub fn concat<T: Copy + Send + Sync>(parts: &[Vec<T>]) -> Vec<T> {
     // SAFETY: the slots cover the first `total` elements, and each was written above.
     unsafe { out.set_len(total) };
     out
+}
+
+/// `slice` cut into consecutive parts of `lengths` (summing to at most its length), for threads
+/// each to write their own part of one output.
+pub fn split_lengths<T>(mut slice: &mut [T], lengths: impl IntoIterator<Item = usize>) -> Vec<&mut [T]> {
+    lengths
+        .into_iter()
+        .map(|len| {
+            let part;
+            (part, slice) = std::mem::take(&mut slice).split_at_mut(len);
+            part
+        })
+        .collect()
 }
 
 /// `Σ_{lo≤k<hi} term(k)` of each term in four interleaved partial sums (k mod 4), added at the

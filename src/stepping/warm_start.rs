@@ -8,7 +8,7 @@ use crate::detection::{Antagonist, DetectedContact};
 use rayon::prelude::*;
 use std::sync::Arc;
 
-use crate::parallel::CHUNK;
+use crate::parallel::{split_lengths, CHUNK};
 
 use crate::problem::colouring::Colouring;
 use crate::problem::matrix_free::{BlockColours, Incidence, MatrixFree, Neighbours};
@@ -126,22 +126,18 @@ impl WarmStart {
         let scale = if self.time_step > 0.0 && self.time_step != h { h / self.time_step } else { 1.0 };
         // Both lists are sorted by key: one merge, in chunks of contacts on threads, each chunk
         // writing its own share of the outputs.
-        let (mut sliding, mut rolls) = impulses.split_at_mut(2 * nc);
-        let mut kept_rest = kept.as_deref_mut().unwrap_or_default();
-        let mut chunks = Vec::new();
-        for (first, end) in Self::chunks_of(contacts) {
-            let n = end - first;
-            let part;
-            (part, sliding) = std::mem::take(&mut sliding).split_at_mut(2 * n);
-            let roll;
-            (roll, rolls) = std::mem::take(&mut rolls).split_at_mut(if rolling { n } else { 0 });
-            let kept_part;
-            (kept_part, kept_rest) = std::mem::take(&mut kept_rest).split_at_mut(if colours.is_some() { n } else { 0 });
-            chunks.push((first, end, part, roll, kept_part));
-        }
-        let matched = chunks
+        let chunks = Self::chunks_of(contacts);
+        let width = |k: usize, on: bool| chunks.iter().map(move |&(first, end)| if on { k * (end - first) } else { 0 });
+        let (sliding, rolls) = impulses.split_at_mut(2 * nc);
+        let parts = (
+            &chunks,
+            split_lengths(sliding, width(2, true)),
+            split_lengths(rolls, width(1, rolling)),
+            split_lengths(kept.as_deref_mut().unwrap_or_default(), width(1, colours.is_some())),
+        );
+        let matched = parts
             .into_par_iter()
-            .map(|(first, end, part, roll, kept_part)| {
+            .map(|(&(first, end), part, roll, kept_part)| {
                 let mut e = self.entries.partition_point(|entry| entry.0 < contacts[first].key());
                 let mut matched = 0;
                 for (k, c) in contacts[first..end].iter().enumerate() {
