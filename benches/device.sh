@@ -49,8 +49,9 @@ gpu_steps() {
     timeout 90 "$2" run scenes/sandbox.toml --device gpu --steps 5 --vtk-every 0 --quiet \
         --out "$OUT/runs/$1_sandbox_gpu" 2>&1 | tee -a "$log"
     [ -n "$settled" ] || return
+    # The scene's own settings (step-velocity, work list), and the same with block sweeps.
     for setting in "--tol 1e-2" "--tol 1e-4" "--tol 1e-4 --ordering worklist --criterion velocity --anderson 0" \
-        "--max-iter 4 --tol 1e-300"; do
+        "--max-iter 4 --tol 1e-300" "--block-sweeps 0" "--block-sweeps 4" "--block-sweeps 16"; do
         say "$1: pile_10k on the GPU from its settled state, $setting"
         timeout 60 "$2" run scenes/pile_10k.toml --restart "$settled" --device gpu --steps 30 $setting --quiet \
             --out "$OUT/runs/$1_pile_gpu_${setting//[^a-z0-9]/}" 2>&1 | grep -v "^warning" | tee -a "$log"

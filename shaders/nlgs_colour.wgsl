@@ -1,15 +1,13 @@
 // One colour of a graph-coloured NLGS sweep on the matrix-free operator (notes §6.3): contacts of
 // one colour share no moving body, so they are solved in parallel with exact Gauss–Seidel
-// semantics. Each contact reads its velocity from the body velocities v = M⁻¹ Bᵀ r, solves its
-// single-contact problem and scatters its impulse change into v (no two writers per body).
-// With a threshold (the work list's sweeps), a contact whose residual in velocity units is within
-// it is left alone: converged contacts do not drift.
+// semantics (each by `nlgs_update`, shared/nlgs_update.wgsl).
 // CPU mirror: src/gpu/cpu/nlgs_colour.rs
 
 #import grid
 #import single_contact
 #import contact
 #import range
+#import nlgs_update
 
 @group(0) @binding(0) var<storage, read> contacts: array<Contact>;
 @group(0) @binding(1) var<storage, read> inv_mass: array<vec2<f32>>;
@@ -21,55 +19,11 @@
 @group(0) @binding(7) var<storage, read_write> v: array<vec4<f32>>;
 @group(0) @binding(8) var<uniform> range: Range;
 
-fn scatter(k: u32, s: f32, f: vec2<f32>, torque: f32) {
-    let im = inv_mass[k];
-    if (im.x == 0.0 && im.y == 0.0) {
-        return; // a fixed body: several contacts of one colour may touch it
-    }
-    var dv = v[k];
-    dv = vec4<f32>(dv.xy + s * im.x * f, dv.z + s * im.y * torque, 0.0);
-    v[k] = dv;
-}
-
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let gid = vec3<u32>(element_index(grid, groups), 0u, 0u);
     if (gid.x >= range.count) {
         return;
     }
-    let a = order[range.start + gid.x];
-    let c = contacts[a];
-    let t = vec2<f32>(-c.n.y, c.n.x);
-    var vj = vec4<f32>(0.0);
-    if (c.j != NO_BODY) {
-        vj = v[c.j];
-    }
-    let w = diag[a];
-    let ra = r[a];
-    let u = relative_velocity(c, v[c.i], vj) + q[a];
-    if (range.threshold > 0.0 && sc_velocity_residual(w.x, ra, u, mu[a]) <= range.threshold) {
-        return;
-    }
-    let q_local = u - vec2<f32>(w.x * ra.x + w.y * ra.y, w.z * ra.x + w.w * ra.y);
-    let rn = solve_single_contact(w, q_local, mu[a]);
-    let d = rn - ra;
-    r[a] = rn;
-    var f = d.x * c.n;
-    if (FRICTION) {
-        f = f + d.y * t;
-    }
-    var ti = 0.0;
-    var tj = 0.0;
-    if (ROTATION) {
-        ti = d.x * c.levers.x;
-        tj = d.x * c.levers.z;
-        if (FRICTION) {
-            ti = ti + d.y * c.levers.y;
-            tj = tj + d.y * c.levers.w;
-        }
-    }
-    scatter(c.i, 1.0, f, ti);
-    if (c.j != NO_BODY) {
-        scatter(c.j, -1.0, f, tj);
-    }
+    nlgs_update(order[range.start + gid.x], range.threshold);
 }

@@ -225,28 +225,34 @@ fn the_colour_ordering_runs_from_the_command_line_and_an_unknown_one_is_named() 
 }
 
 #[test]
-fn focused_sweeps_out_of_range_are_refused_from_the_command_line_and_the_scene() {
-    let out = moreau().args(["run", "scenes/pile.toml", "--steps", "1", "--focus", "101"]).output().unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("focus 101") && err.contains("at most 100"), "{err}");
+fn sweep_options_out_of_range_are_refused_from_the_command_line_and_the_scene() {
     let dir = std::env::temp_dir().join(format!("moreau-focus-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let scene = dir.join("focused.toml");
-    let text = std::fs::read_to_string("scenes/pile.toml").unwrap().replacen("[solver]", "[solver]\nfocus = 101", 1);
-    std::fs::write(&scene, text).unwrap();
-    let out = moreau().arg("run").arg(&scene).args(["--steps", "1", "--out"]).arg(dir.join("out")).output().unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("focus 101"), "{err}");
-    // In range, the scene's focus runs.
-    let text = std::fs::read_to_string(&scene).unwrap().replace("focus = 101", "focus = 3");
-    std::fs::write(&scene, text).unwrap();
-    let out = moreau()
-        .arg("run")
-        .arg(&scene)
-        .args(["--steps", "2", "--device", "cpu", "--out"])
-        .arg(dir.join("out"))
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // Focused sweeps (at most 100 after a full sweep) and the GPU's block sweeps (at most 64 a
+    // dispatch): out of range from the command line and from the scene, in range they run.
+    for (name, flag, (bad, rule), good) in [
+        ("focus", "--focus", ("101", "at most 100"), "3"),
+        ("block_sweeps", "--block-sweeps", ("65", "at most 64"), "4"),
+    ] {
+        let out = moreau().args(["run", "scenes/pile.toml", "--steps", "1", flag, bad]).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(&format!("{name} {bad}")) && err.contains(rule), "{err}");
+        let text = std::fs::read_to_string("scenes/pile.toml").unwrap();
+        std::fs::write(&scene, text.replacen("[solver]", &format!("[solver]\n{name} = {bad}"), 1)).unwrap();
+        let out =
+            moreau().arg("run").arg(&scene).args(["--steps", "1", "--out"]).arg(dir.join("out")).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(&format!("{name} {bad}")), "{err}");
+        std::fs::write(&scene, text.replacen("[solver]", &format!("[solver]\n{name} = {good}"), 1)).unwrap();
+        let out = moreau()
+            .arg("run")
+            .arg(&scene)
+            .args(["--steps", "2", "--device", "cpu", "--out"])
+            .arg(dir.join("out"))
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{name}: {}", String::from_utf8_lossy(&out.stderr));
+    }
     std::fs::remove_dir_all(&dir).ok();
 }

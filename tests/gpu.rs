@@ -6,7 +6,7 @@ mod common;
 
 use std::path::Path;
 
-use moreau::gpu::colouring::Colouring;
+use moreau::gpu::colouring::{BlockColouring, Colouring};
 use moreau::gpu::cpu;
 use moreau::gpu::layout::{to_f32_pairs, BsrLayout, MatrixFreeLayout};
 use moreau::gpu::{stages, GpuContext};
@@ -118,6 +118,23 @@ fn every_kernel_matches_its_cpu_mirror() {
             assert_eq!(kept, within, "{name}, threshold {threshold:e}: {kept} kept, {within} within");
             assert!(threshold == 0.0 || (within > 0 && within < first.count()), "{name}: {within} within");
         }
+        // Block sweeps: blocks of 64 contacts (several a problem, in several block colours),
+        // each swept three times a dispatch, plain and thresholded.
+        let blocks = BlockColouring::new(&layout, &colouring, 64);
+        assert!(blocks.blocks.n_colours() >= 2, "{name}: {} block colours", blocks.blocks.n_colours());
+        for threshold in [0.0, sorted[nc / 2]] {
+            let (mut r_cpu, mut v_cpu) = (r.clone(), cpu_v.clone());
+            for block_colour in 0..blocks.blocks.n_colours() {
+                let w = (&diag[..], &q[..], &mu[..]);
+                let (r_gpu, v_gpu) =
+                    stages::nlgs_blocks(&ctx, &layout, w, &blocks, block_colour, 3, threshold, (&r_cpu, &v_cpu))
+                        .unwrap();
+                cpu::nlgs_blocks::nlgs_blocks(&layout, w, &blocks, block_colour, 3, threshold, &mut r_cpu, &mut v_cpu);
+                let what = format!("{name}: nlgs_blocks {block_colour}, threshold {threshold:e}");
+                assert_close(r_gpu.as_flattened(), r_cpu.as_flattened(), &format!("{what} r"));
+                assert_close(v_gpu.as_flattened(), v_cpu.as_flattened(), &format!("{what} v"));
+            }
+        }
         let colouring = Colouring::block_sparse(&bsr);
         let mut r_cpu = r.clone();
         for colour in 0..colouring.n_colours() {
@@ -144,6 +161,33 @@ fn colourings_are_proper_and_a_coloured_sweep_is_a_gauss_seidel_sweep() {
         let mut seen = c.order.clone();
         seen.sort_unstable();
         assert_eq!(seen, (0..p.n_contacts() as u32).collect::<Vec<_>>());
+        // Block sweeps' layout: each block holds its run of contacts colour by colour, and two
+        // blocks of one block colour share no moving body.
+        let blocks = BlockColouring::new(&layout, &c, 100);
+        let colour_of = c.colour_of_each();
+        let n_blocks = p.n_contacts().div_ceil(100);
+        for b in 0..n_blocks {
+            let mut members: Vec<u32> = (0..blocks.colours).flat_map(|k| blocks.contacts(b, k).to_vec()).collect();
+            assert!(
+                (0..blocks.colours).all(|k| blocks.contacts(b, k).iter().all(|&a| colour_of[a as usize] == k as u32))
+            );
+            members.sort_unstable();
+            assert_eq!(members, (b as u32 * 100..((b + 1) * 100).min(p.n_contacts()) as u32).collect::<Vec<_>>());
+        }
+        let moving = |k: u32| k != moreau::gpu::layout::NO_ANTAGONIST && layout.inv_mass[k as usize] != [0.0, 0.0];
+        for k in 0..blocks.blocks.n_colours() {
+            let mut owner = vec![None; layout.inv_mass.len()];
+            for &b in blocks.blocks.colour(k) {
+                for a in (0..blocks.colours).flat_map(|c| blocks.contacts(b as usize, c)) {
+                    let contact = &layout.contacts[*a as usize];
+                    for body in [contact.i, contact.j].into_iter().filter(|&body| moving(body)) {
+                        let first = *owner[body as usize].get_or_insert(b);
+                        assert_eq!(first, b, "blocks {first} and {b} of block colour {k} share body {body}");
+                    }
+                }
+            }
+        }
+        assert!(blocks.blocks.n_colours() >= 2 && n_blocks > blocks.blocks.n_colours());
         // One coloured sweep (mirror, colour by colour) equals sequential GS in colour order.
         let nc = p.n_contacts();
         let q = to_f32_pairs(&p.q);
@@ -244,6 +288,71 @@ fn the_gpu_holds_every_contact_to_a_step_of_gravity_under_the_step_velocity_test
         let worst = common::worst_contact_residual(&p, &run.r, false) / g_h;
         assert!(worst <= tol, "{ordering:?}: a contact at {worst:e} of g h");
     }
+}
+
+/// Block sweeps (`block_sweeps`: each workgroup sweeps a block of 4,096 contacts several times
+/// a dispatch) solve what colour sweeps solve, judged in f64 on the CPU, in fewer dispatches: a
+/// lattice of about 5,000 contacts (two blocks), plain and as the work list's thresholded sweeps.
+/// (Dispatches counted from the iterations: the process-wide counters see the other tests' GPU
+/// work.)
+#[test]
+fn block_sweeps_solve_what_colour_sweeps_solve_in_fewer_dispatches() {
+    use moreau::solvers::{Ordering, StopCriterion};
+    let Some(ctx) = common::gpu_context() else { return };
+    let p = lattice_packing(72, 36, 0.3, 1);
+    let Delassus::MatrixFree(op) = &p.w else { unreachable!() };
+    let colouring = op.colouring();
+    let block = moreau::gpu::colouring::BLOCK_CONTACTS;
+    let block_colours = BlockColouring::new(&MatrixFreeLayout::new(op), colouring, block).blocks.n_colours();
+    assert!(p.n_contacts() > block && block_colours < colouring.n_colours());
+    for (criterion, ordering, tol) in
+        [(StopCriterion::Natural, Ordering::Forward, 1e-5), (StopCriterion::Velocity, Ordering::Worklist, 1e-4)]
+    {
+        let dispatches = [0, 4].map(|block_sweeps| {
+            let opts =
+                SolverOptions { tol, max_iter: 100_000, criterion, ordering, block_sweeps, ..Default::default() };
+            let run = moreau::gpu::solve(&ctx, &p, SolverKind::Nlgs, &opts, None).unwrap();
+            let what = format!("{ordering:?}, block sweeps {block_sweeps}");
+            assert!(run.converged, "{what}: {}", run.stop_reason);
+            let judged = moreau::solvers::stopping::JudgedMeasure::new(&p, criterion);
+            let (natural, u) = moreau::problem::residual::error_of(&p, &run.r);
+            let error = judged.of(&p, &run.r, &u, natural);
+            assert!(error <= tol, "{what}: f64 error {error:e}");
+            let noted = run.notes.iter().any(|n| n.starts_with("block sweeps: 2 blocks"));
+            assert_eq!(noted, block_sweeps > 0, "{what}: {:?}", run.notes);
+            // The sweeps' dispatches (the checks' are the same per iteration on both).
+            run.iterations * if block_sweeps > 0 { block_colours } else { colouring.n_colours() }
+        });
+        assert!(dispatches[1] < dispatches[0], "{ordering:?}: {dispatches:?} dispatches");
+    }
+}
+
+/// A simulation stepped with block sweeps keeps the CPU run's physics: `scenes/pile.toml` (400
+/// disks falling into a box, NLGS at tol 1e-4 with Anderson 5), 60 steps on the CPU and on the
+/// GPU with 4 sweeps of each block a dispatch. Every GPU step converges (judged in f64) and the
+/// largest overlap stays within 25 % of the CPU run's (the trajectories part once the f32
+/// solves differ).
+#[test]
+fn a_pile_stepped_with_block_sweeps_keeps_the_cpu_runs_physics() {
+    let Some(ctx) = common::gpu_context() else { return };
+    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/pile.toml")).unwrap();
+    let run = |gpu: Option<GpuContext>| {
+        let mut s = moreau::scene::parse(&text, Path::new("pile.toml")).unwrap();
+        s.settings.options.block_sweeps = 4;
+        let mut sim = moreau::stepping::Simulation::new(s.world, s.settings).unwrap();
+        if let Some(ctx) = gpu {
+            sim.set_backend(moreau::backend::Backend::gpu(ctx)).unwrap();
+        }
+        (0..60).map(|_| sim.step().unwrap()).collect::<Vec<_>>()
+    };
+    let (cpu, gpu) = (run(None), run(Some(ctx)));
+    for r in &gpu {
+        assert!(r.converged && r.error <= 1e-4, "step {}: {}", r.step, r.stop_reason);
+    }
+    assert!(gpu.iter().any(|r| r.gpu_iterations > 0), "no step swept on the GPU");
+    let worst = |rs: &[moreau::stepping::StepReport]| rs.iter().map(|r| r.max_penetration).fold(0.0, f64::max);
+    let (c, g) = (worst(&cpu), worst(&gpu));
+    assert!(c > 0.0 && g <= 1.25 * c, "largest overlap: GPU {g:.3e} m, CPU {c:.3e} m");
 }
 
 /// The velocity test on the GPU is the CPU's: on a column of heavy grains the natural-map error

@@ -249,16 +249,18 @@ class Simulation:
     def set_solver(self, solver: Optional[str] = None, tol: Optional[float] = None,
                    max_iter: Optional[int] = None, criterion: Optional[str] = None,
                    ordering: Optional[str] = None, anderson: Optional[int] = None,
-                   focus: Optional[int] = None, omega: Optional[float] = None) -> None:
+                   focus: Optional[int] = None, omega: Optional[float] = None,
+                   block_sweeps: Optional[int] = None) -> None:
         """Sets the solver of the following steps, as ``moreau run``'s options override a
         scene's: each argument given replaces the current setting, the others stay. Settings
         that cannot run (``max_iter`` 0, a solver the device or the rolling rows refuse) raise
-        MoreauError and change nothing."""
+        MoreauError and change nothing. ``block_sweeps`` > 0: the GPU's NLGS sweeps blocks of
+        contacts that many times a dispatch (``--block-sweeps``)."""
         def count(x: Optional[int], name: str) -> Optional[int]:
             return None if x is None else _count(x, name)
         self._inner.set_solver(solver, None if tol is None else float(tol), count(max_iter, "max_iter"),
                                criterion, ordering, count(anderson, "anderson"), count(focus, "focus"),
-                               None if omega is None else float(omega))
+                               None if omega is None else float(omega), count(block_sweeps, "block_sweeps"))
 
     def set_time_step(self, h: float) -> None:
         """Sets the time step (s) of the following steps, as ``moreau run --time-step`` does; the

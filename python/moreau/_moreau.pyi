@@ -108,6 +108,7 @@ class Simulation:
         anderson: Optional[int] = None,
         focus: Optional[int] = None,
         omega: Optional[float] = None,
+        block_sweeps: Optional[int] = None,
     ) -> None: ...
     def set_time_step(self, h: float) -> None: ...
     @property

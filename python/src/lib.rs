@@ -394,7 +394,7 @@ impl Simulation {
     /// The solver of the following steps: each argument given replaces the current setting (a
     /// scene's, or the constructor's), the others stay; refused, with the settings unchanged,
     /// when the result cannot run.
-    #[pyo3(signature = (solver = None, tol = None, max_iter = None, criterion = None, ordering = None, anderson = None, focus = None, omega = None))]
+    #[pyo3(signature = (solver = None, tol = None, max_iter = None, criterion = None, ordering = None, anderson = None, focus = None, omega = None, block_sweeps = None))]
     #[allow(clippy::too_many_arguments)]
     fn set_solver(
         &mut self,
@@ -406,6 +406,7 @@ impl Simulation {
         anderson: Option<usize>,
         focus: Option<usize>,
         omega: Option<f64>,
+        block_sweeps: Option<usize>,
     ) -> PyResult<()> {
         let now = &self.0.settings;
         let solver = solver.map(moreau::SolverKind::from_name).transpose().map_err(error)?.unwrap_or(now.solver);
@@ -418,6 +419,7 @@ impl Simulation {
         options.anderson = anderson.unwrap_or(options.anderson);
         options.focus = focus.unwrap_or(options.focus);
         options.omega = omega.unwrap_or(options.omega);
+        options.block_sweeps = block_sweeps.unwrap_or(options.block_sweeps);
         self.0.set_solver(solver, options).map_err(error)
     }
 

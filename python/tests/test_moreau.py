@@ -191,7 +191,12 @@ def test_a_scene_given_another_solver_from_python_steps_as_the_command_lines_ove
     # Refused settings change nothing.
     with pytest.raises(moreau.MoreauError, match="max_iter 0: must be at least 1"):
         sim.set_solver(max_iter=0, ordering="forward")
+    with pytest.raises(moreau.MoreauError, match="block_sweeps 65: a block is swept at most 64 times a dispatch"):
+        sim.set_solver(block_sweeps=65)
     assert sim.solver_settings() == after
+    # The GPU's block sweeps are a setting like the others (the CPU sweeps as its ordering says).
+    sim.set_solver(block_sweeps=4)
+    assert sim.solver_settings() == {**after, "block_sweeps": 4}
 
 
 def test_a_scene_given_another_time_step_from_python_steps_as_the_command_line_does(tmp_path):

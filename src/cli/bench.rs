@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{bail, Result};
 
 use crate::backend::Backend;
-use crate::gpu::timing::{kernel_times, nlgs_sweep_times};
+use crate::gpu::timing::{block_round_time, kernel_times, nlgs_sweep_times};
 use crate::gpu::GpuContext;
 use crate::problem::generate::lattice_packing;
 use crate::problem::ContactProblem;
@@ -328,6 +328,31 @@ fn gpu_scene_rows(p: &ContactProblem, opts: &SolverOptions, a: &BenchArgs) -> Re
             "Anderson {depth} on the GPU, kernels only (ms a dispatch): dots {dots:.4}, fit {fit:.4}, mix {mix:.4}, velocities' rebuild {rebuild:.4}; a sweep with its mixing {:.4} against {:.4} plain",
             1e3 * m.mixed_sweep,
             1e3 * sweep
+        );
+    }
+    block_sweep_rows(&backend, p, opts, a.sweeps)
+}
+
+/// Block sweeps beside the colour sweeps above (matrix-free problems): a round's kernels alone,
+/// and the solve to tol, for a few sweeps of each block a dispatch.
+fn block_sweep_rows(backend: &Backend, p: &ContactProblem, opts: &SolverOptions, rounds: usize) -> Result<()> {
+    let Some(ctx) = backend.gpu_context().filter(|_| matches!(p.w, crate::problem::Delassus::MatrixFree(_))) else {
+        return Ok(());
+    };
+    println!("| block sweeps | dispatches a round | round ms (kernels only) | ms a sweep's worth | solve to tol {:.0e}: rounds, sweeps' worth, ms |", opts.tol);
+    println!("|---|---|---|---|---|");
+    for inner in [1, 4, 16] {
+        let (round, dispatches) = block_round_time(ctx, p, rounds, inner)?;
+        let opts = SolverOptions { block_sweeps: inner, anderson: 0, ..opts.clone() };
+        let solved = backend.solve(p, SolverKind::Nlgs, &opts, None)?;
+        println!(
+            "| {inner} | {dispatches} | {:.4} | {:.4} | {}{}, {}, {:.1} |",
+            1e3 * round,
+            1e3 * round / inner as f64,
+            solved.iterations,
+            if solved.converged { "" } else { " (not converged)" },
+            solved.iterations * inner,
+            1e3 * solved.seconds
         );
     }
     Ok(())

@@ -48,6 +48,10 @@ pub struct RunArgs {
     /// (default: the scene's; 0: off).
     #[arg(long)]
     focus: Option<usize>,
+    /// GPU NLGS: sweep blocks of contacts this many times per dispatch instead of a dispatch per
+    /// colour and sweep (default: the scene's; 0: colour sweeps; at most 64).
+    #[arg(long)]
+    block_sweeps: Option<usize>,
     /// NLGS contact ordering (default: the scene's, else forward; `colours` sweeps colour by
     /// colour as the GPU does).
     #[arg(long, value_enum)]
@@ -254,6 +258,9 @@ fn apply_overrides(scene: &mut scene::Scene, a: &RunArgs) -> Result<()> {
     }
     if let Some(o) = a.ordering {
         scene.settings.options.ordering = o;
+    }
+    if let Some(k) = a.block_sweeps {
+        scene.settings.options.block_sweeps = k;
     }
     scene.settings.options.validate()?;
     Ok(())

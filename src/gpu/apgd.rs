@@ -9,7 +9,7 @@ use std::cell::Cell;
 use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
-use super::driver::{initial_impulses, iterate};
+use super::driver::{initial_impulses, iterate, PerIteration};
 use super::kernels::{bind, dispatch, groups, storage};
 use super::layout::to_f32_pairs;
 use super::operator::GpuProblem;
@@ -78,7 +78,7 @@ pub fn solve(
     let wg = groups(nc);
     let every = opts.apgd_threshold_every.max(1);
     let count = Cell::new(0usize);
-    iterate(ctx, p, &gp, opts, SolverKind::Apgd, start, r, &gamma, 1, |pass| {
+    iterate(ctx, p, &gp, opts, SolverKind::Apgd, start, r, &gamma, PerIteration::products(1), |pass| {
         gradient.record(k, pass);
         dispatch(pass, &k.apgd_step, &step, wg);
         restart_dot.record(k, pass);

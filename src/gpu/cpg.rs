@@ -7,7 +7,7 @@
 use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
-use super::driver::{initial_impulses, iterate};
+use super::driver::{initial_impulses, iterate, PerIteration};
 use super::kernels::{bind, dispatch, groups, storage, submit, uniform};
 use super::layout::to_f32_pairs;
 use super::operator::GpuProblem;
@@ -108,7 +108,7 @@ pub fn solve(
         dispatch(pass, &k.cpg_gradient, &gradient, g);
         dispatch(pass, &k.cpg_direction, &direction, g);
     });
-    iterate(ctx, p, &gp, opts, kind, start, r, &r_buf, 2, |pass| {
+    iterate(ctx, p, &gp, opts, kind, start, r, &r_buf, PerIteration::products(2), |pass| {
         dot_ud.record(k, pass);
         dot_uw.record(k, pass);
         dispatch(pass, &k.cpg_scalars, &stages[0].0, 1);

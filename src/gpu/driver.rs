@@ -56,6 +56,24 @@ fn land_on_cone(p: &ContactProblem, r: &mut [f64]) {
 /// when `gpu_plateau_stops` (plain sweeps after a stalled mixing run past plateaus).
 const F32_PLATEAU_CEILING: f64 = 1e-3;
 
+/// What one iteration of a GPU solver does: `W` products (for the report) and sweeps' worth of
+/// work (the batches between checks are counted in sweeps, so that an iteration of several
+/// sweeps, a round of block sweeps, is not run as far past tol as the same count of sweeps).
+#[derive(Clone, Copy)]
+pub struct PerIteration {
+    /// `W` products (or their equivalent) an iteration makes.
+    pub products: usize,
+    /// Sweeps' worth of contact updates an iteration makes.
+    pub sweeps: usize,
+}
+
+impl PerIteration {
+    /// An iteration of `products` products and one sweep's worth of work.
+    pub fn products(products: usize) -> Self {
+        Self { products, sweeps: 1 }
+    }
+}
+
 /// Runs `record(pass)` (one iteration) until a stop; `r_buf` holds the impulses.
 #[allow(clippy::too_many_arguments)]
 pub fn iterate(
@@ -67,9 +85,12 @@ pub fn iterate(
     start: Instant,
     mut r: Vec<f64>,
     r_buf: &GpuBuffer,
-    products_per_iteration: usize,
+    per_iteration: PerIteration,
     record: impl Fn(&mut wgpu::ComputePass),
 ) -> Result<SolveReport, GpuError> {
+    let products_per_iteration = per_iteration.products;
+    // A batch of `sweeps` sweeps' worth, in iterations.
+    let iterations_of = |sweeps: usize| (sweeps / per_iteration.sweeps.max(1)).max(1);
     let checker = Checker::new(ctx, p, gp, r_buf, opts.criterion);
     let measure = JudgedMeasure::new(p, opts.criterion);
     let judge = |r: &[f64]| {
@@ -113,14 +134,14 @@ pub fn iterate(
     let (stop, stop_reason) = match stop_at(error, 0, &stall) {
         Some(stop) => stop,
         None => {
-            let first = batch.min(opts.max_iter);
+            let first = iterations_of(batch).min(opts.max_iter);
             run_batch(first);
             let mut in_flight = (checker.submit(ctx, likely_judged(error)), first);
             loop {
                 let (check, at) = in_flight;
                 // The next batch is queued before the check's numbers are waited for: the GPU
                 // sweeps while they travel back and the CPU reads them.
-                let ahead = batch.min(opts.max_iter - at);
+                let ahead = iterations_of(batch).min(opts.max_iter - at);
                 if ahead > 0 {
                     run_batch(ahead);
                 }

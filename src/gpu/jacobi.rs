@@ -4,7 +4,7 @@
 use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
-use super::driver::{initial_impulses, iterate};
+use super::driver::{initial_impulses, iterate, PerIteration};
 use super::kernels::{bind, dispatch, groups, storage};
 use super::layout::to_f32_pairs;
 use super::operator::GpuProblem;
@@ -30,7 +30,7 @@ pub fn solve(
     let op = gp.product(ctx, &r_buf, &gp.q, &u_buf);
     let update =
         bind(ctx, &kernels.jacobi_update, &[("u", &u_buf), ("mu", &gp.mu), ("step", &step_buf), ("r", &r_buf)]);
-    iterate(ctx, p, &gp, opts, SolverKind::Jacobi, start, r, &r_buf, 1, |pass| {
+    iterate(ctx, p, &gp, opts, SolverKind::Jacobi, start, r, &r_buf, PerIteration::products(1), |pass| {
         op.record(kernels, pass);
         dispatch(pass, &kernels.jacobi_update, &update, groups(nc));
     })

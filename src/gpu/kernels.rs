@@ -79,6 +79,8 @@ pub struct Kernels {
     pub nlgs_colour: Kernel,
     /// The `nlgs_colour_bsr` kernel.
     pub nlgs_colour_bsr: Kernel,
+    /// The `nlgs_blocks` kernel.
+    pub nlgs_blocks: Kernel,
     /// The `reduce_dot` kernel.
     pub reduce_dot: Kernel,
     /// The `reduce_final` kernel.
@@ -114,24 +116,26 @@ pub struct Kernels {
 }
 
 /// The shared WGSL a kernel pulls in with `#import name` lines: written once, composed at load.
-const MODULES: [(&str, &str); 6] = [
+const MODULES: [(&str, &str); 7] = [
     ("grid", include_str!("../../shaders/shared/grid.wgsl")),
     ("contact", include_str!("../../shaders/shared/contact.wgsl")),
     ("range", include_str!("../../shaders/shared/range.wgsl")),
     ("tree_sum", include_str!("../../shaders/shared/tree_sum.wgsl")),
     ("single_contact", include_str!("../../shaders/shared/single_contact.wgsl")),
     ("mixer", include_str!("../../shaders/shared/mixer.wgsl")),
+    ("nlgs_update", include_str!("../../shaders/shared/nlgs_update.wgsl")),
 ];
 
 /// Every kernel: name, WGSL (before composition), and whether it is specialised by the
 /// rotation and friction constants.
-pub const KERNELS: [(&str, &str, bool); 22] = [
+pub const KERNELS: [(&str, &str, bool); 23] = [
     ("body_accumulate", include_str!("../../shaders/body_accumulate.wgsl"), true),
     ("contact_gather", include_str!("../../shaders/contact_gather.wgsl"), true),
     ("bsr_product", include_str!("../../shaders/bsr_product.wgsl"), false),
     ("jacobi_update", include_str!("../../shaders/jacobi_update.wgsl"), false),
     ("nlgs_colour", include_str!("../../shaders/nlgs_colour.wgsl"), true),
     ("nlgs_colour_bsr", include_str!("../../shaders/nlgs_colour_bsr.wgsl"), false),
+    ("nlgs_blocks", include_str!("../../shaders/nlgs_blocks.wgsl"), true),
     ("reduce_dot", include_str!("../../shaders/reduce_dot.wgsl"), false),
     ("reduce_final", include_str!("../../shaders/reduce_final.wgsl"), false),
     ("cpg_scalars", include_str!("../../shaders/cpg_scalars.wgsl"), false),
@@ -193,6 +197,7 @@ impl Kernels {
             jacobi_update: k("jacobi_update"),
             nlgs_colour: k("nlgs_colour"),
             nlgs_colour_bsr: k("nlgs_colour_bsr"),
+            nlgs_blocks: k("nlgs_blocks"),
             reduce_dot: k("reduce_dot"),
             reduce_final: k("reduce_final"),
             cpg_scalars: k("cpg_scalars"),

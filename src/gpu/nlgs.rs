@@ -14,9 +14,9 @@ use std::time::Instant;
 use bytemuck::{Pod, Zeroable};
 
 use super::anderson::{GpuAnderson, MAX_DEPTH};
-use super::colouring::Colouring;
+use super::colouring::{BlockColouring, Colouring, BLOCK_CONTACTS};
 use super::context::{GpuContext, GpuError};
-use super::driver::{initial_impulses, iterate};
+use super::driver::{initial_impulses, iterate, PerIteration};
 use super::kernels::{bind, dispatch, groups, storage, submit, uniform, Kernel};
 use super::layout::to_f32_pairs;
 use super::operator::{GpuMatrix, GpuProblem};
@@ -34,11 +34,33 @@ struct Range {
     _pad: u32,
 }
 
-/// One coloured NLGS sweep ready to record: a dispatch per colour, with the buffers its bind
-/// groups use kept alive. The solve records it between checks; `moreau bench` times it alone.
+/// The `Blocks` uniform of the block kernel (padded to 32 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Blocks {
+    first: u32,
+    count: u32,
+    threshold: f32,
+    inner: u32,
+    colours: u32,
+    _pad: [u32; 3],
+}
+
+/// How a sweep's dispatches are cut: a dispatch per contact colour, or (matrix-free, with
+/// `block_sweeps` > 0) a dispatch per block colour, each sweeping its blocks that many times.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Dispatches {
+    Colours { matrix_free: bool },
+    Blocks,
+}
+
+/// One coloured NLGS sweep ready to record: a dispatch per colour (or per block colour), with
+/// the buffers its bind groups use kept alive. The solve records it between checks; `moreau
+/// bench` times it alone.
 pub struct ColouredSweep {
     kernels: std::sync::Arc<super::kernels::Kernels>,
-    matrix_free: bool,
+    dispatches: Dispatches,
+    /// A bind group per dispatch, and its contacts (its blocks for block sweeps).
     per_colour: Vec<(BindGroup, u32)>,
     /// Matrix-free: `v = M⁻¹ Bᵀ r` from the impulses (`body_accumulate`) and the bodies.
     velocities: Option<(BindGroup, usize)>,
@@ -48,8 +70,16 @@ pub struct ColouredSweep {
 impl ColouredSweep {
     /// The sweep of `p` (uploaded as `gp`) over the impulses in `r_buf` (which hold `r`); a
     /// matrix-free sweep with `threshold` > 0 updates only the contacts whose residual in
-    /// velocity units exceeds it.
-    pub fn new(ctx: &GpuContext, p: &ContactProblem, gp: &GpuProblem, r_buf: &GpuBuffer, threshold: f32) -> Self {
+    /// velocity units exceeds it, and with `block_sweeps` > 0 sweeps blocks of contacts that many
+    /// times per dispatch ([`BlockColouring`]).
+    pub fn new(
+        ctx: &GpuContext,
+        p: &ContactProblem,
+        gp: &GpuProblem,
+        r_buf: &GpuBuffer,
+        threshold: f32,
+        block_sweeps: usize,
+    ) -> Self {
         let kernels = &gp.kernels;
         let diag: Vec<[f32; 4]> = p.w.diag_blocks().iter().map(|d| d.map(|x| x as f32)).collect();
         let diag_buf = storage(ctx, "diag", &diag);
@@ -68,14 +98,13 @@ impl ColouredSweep {
                 .collect()
         };
         // Per operator kind: the colours, the velocities' rebuild, and the buffers to keep.
-        let (matrix_free, per_colour, velocities, mut kept) = match &gp.matrix {
+        let (dispatches, per_colour, velocities, mut kept) = match &gp.matrix {
             GpuMatrix::MatrixFree { layout, contacts, body_start, body_list, inv_mass } => {
                 // The operator's own colouring (repaired from the last step's in a simulation).
                 let colouring = match &p.w {
                     Delassus::MatrixFree(op) => op.colouring().clone(),
                     Delassus::Sparse(_) => Colouring::matrix_free(layout),
                 };
-                let order = storage(ctx, "order", &colouring.order);
                 let v = storage(ctx, "v", &vec![[0.0f32; 4]; layout.inv_mass.len()]);
                 // v = M⁻¹ Bᵀ r of the starting impulses, once.
                 let accumulate = bind(
@@ -93,18 +122,51 @@ impl ColouredSweep {
                 submit(ctx, "nlgs start", |pass| {
                     dispatch(pass, &kernels.body_accumulate, &accumulate, groups(layout.inv_mass.len()))
                 });
-                let buffers = [
+                let common = [
                     ("contacts", contacts),
                     ("inv_mass", inv_mass),
                     ("diag", &diag_buf),
                     ("q", &gp.q),
                     ("mu", &gp.mu),
-                    ("order", &order),
                     ("r", r_buf),
                     ("v", &v),
                 ];
-                let per_colour = per_colour(&kernels.nlgs_colour, &colouring, &buffers);
-                (true, per_colour, Some((accumulate, layout.inv_mass.len())), vec![order, v])
+                let velocities = Some((accumulate, layout.inv_mass.len()));
+                if block_sweeps > 0 {
+                    let blocks = BlockColouring::new(layout, &colouring, BLOCK_CONTACTS);
+                    let order = storage(ctx, "order", &blocks.order);
+                    let colour_start = storage(ctx, "colour_start", &blocks.colour_start);
+                    let block_order = storage(ctx, "block_order", &blocks.blocks.order);
+                    let per_block_colour = (0..blocks.blocks.n_colours())
+                        .map(|k| {
+                            let (first, end) = (blocks.blocks.start[k], blocks.blocks.start[k + 1]);
+                            let uniform_of = Blocks {
+                                first,
+                                count: end - first,
+                                threshold,
+                                inner: block_sweeps as u32,
+                                colours: blocks.colours as u32,
+                                _pad: [0; 3],
+                            };
+                            let blocks_buf = uniform(ctx, "blocks", &[uniform_of]);
+                            let mut all = common.to_vec();
+                            all.extend([
+                                ("order", &order),
+                                ("colour_start", &colour_start),
+                                ("block_order", &block_order),
+                                ("blocks", &blocks_buf),
+                            ]);
+                            (bind(ctx, &kernels.nlgs_blocks, &all), end - first)
+                        })
+                        .collect();
+                    (Dispatches::Blocks, per_block_colour, velocities, vec![order, colour_start, block_order, v])
+                } else {
+                    let order = storage(ctx, "order", &colouring.order);
+                    let mut buffers = common.to_vec();
+                    buffers.push(("order", &order));
+                    let per_colour = per_colour(&kernels.nlgs_colour, &colouring, &buffers);
+                    (Dispatches::Colours { matrix_free: true }, per_colour, velocities, vec![order, v])
+                }
             }
             GpuMatrix::Sparse { layout, row_ptr, cols, blocks } => {
                 let colouring = Colouring::block_sparse(layout);
@@ -120,14 +182,14 @@ impl ColouredSweep {
                     ("r", r_buf),
                 ];
                 let per_colour = per_colour(&kernels.nlgs_colour_bsr, &colouring, &buffers);
-                (false, per_colour, None, vec![order])
+                (Dispatches::Colours { matrix_free: false }, per_colour, None, vec![order])
             }
         };
         kept.push(diag_buf);
-        Self { kernels: kernels.clone(), matrix_free, per_colour, velocities, _buffers: kept }
+        Self { kernels: kernels.clone(), dispatches, per_colour, velocities, _buffers: kept }
     }
 
-    /// Records one sweep: a dispatch per colour.
+    /// Records one sweep: a dispatch per colour (per block colour for block sweeps).
     pub fn record(&self, pass: &mut wgpu::ComputePass) {
         for k in 0..self.per_colour.len() {
             self.record_colour(pass, k);
@@ -136,9 +198,17 @@ impl ColouredSweep {
 
     /// Records colour `k`'s dispatch alone.
     pub fn record_colour(&self, pass: &mut wgpu::ComputePass, k: usize) {
-        let pipeline = if self.matrix_free { &self.kernels.nlgs_colour } else { &self.kernels.nlgs_colour_bsr };
         let (group, count) = &self.per_colour[k];
-        dispatch(pass, pipeline, group, groups(*count as usize));
+        match self.dispatches {
+            Dispatches::Colours { matrix_free: true } => {
+                dispatch(pass, &self.kernels.nlgs_colour, group, groups(*count as usize))
+            }
+            Dispatches::Colours { matrix_free: false } => {
+                dispatch(pass, &self.kernels.nlgs_colour_bsr, group, groups(*count as usize))
+            }
+            // A workgroup per block.
+            Dispatches::Blocks => dispatch(pass, &self.kernels.nlgs_blocks, group, *count),
+        }
     }
 
     /// Matrix-free: the bind group that rebuilds the body velocities from the impulses, and the
@@ -147,7 +217,8 @@ impl ColouredSweep {
         self.velocities.as_ref().map(|(group, bodies)| (group, *bodies))
     }
 
-    /// Colours, and the largest one (most contacts).
+    /// Dispatches a sweep records (its colours, or its block colours), and the largest one (most
+    /// contacts, or most blocks).
     pub fn colours(&self) -> (usize, usize) {
         let largest = (0..self.per_colour.len()).max_by_key(|&k| self.per_colour[k].1).unwrap_or(0);
         (self.per_colour.len(), largest)
@@ -173,12 +244,16 @@ pub fn solve(
     } else {
         0.0
     };
-    let sweep = ColouredSweep::new(ctx, p, &gp, &r_buf, threshold);
+    let blocked = opts.block_sweeps > 0 && matches!(p.w, Delassus::MatrixFree(_));
+    let sweep = ColouredSweep::new(ctx, p, &gp, &r_buf, threshold, opts.block_sweeps);
     // Deeper histories are cut to the kernels' (backend::gpu_omits says so); the work list's
     // sweeps are not mixed, as on the CPU: a mix would move the contacts it leaves alone.
     let depth = if worklist { 0 } else { opts.anderson.min(MAX_DEPTH) };
     let mixer = (depth > 0).then(|| GpuAnderson::new(ctx, &gp, &r32, &r_buf, depth, sweep.velocities()));
-    let mut report = iterate(ctx, p, &gp, opts, SolverKind::Nlgs, start, r, &r_buf, 1, |pass| {
+    // A round of block sweeps does `block_sweeps` sweeps of each block.
+    let sweeps = if blocked { opts.block_sweeps } else { 1 };
+    let per_iteration = PerIteration { products: sweeps, sweeps };
+    let mut report = iterate(ctx, p, &gp, opts, SolverKind::Nlgs, start, r, &r_buf, per_iteration, |pass| {
         sweep.record(pass);
         if let Some(mixer) = &mixer {
             mixer.record(pass);
@@ -190,6 +265,17 @@ pub fn solve(
             .push(format!("work list on the GPU: sweeps update only contacts above {threshold:.3e} in velocity units"));
     } else if opts.ordering == Ordering::Worklist {
         report.notes.push("worklist ordering needs a matrix-free problem: plain colour sweeps".into());
+    }
+    if blocked {
+        let blocks: u32 = sweep.per_colour.iter().map(|(_, count)| count).sum();
+        report.notes.push(format!(
+            "block sweeps: {blocks} blocks of up to {BLOCK_CONTACTS} contacts in {} block colours, each swept {} times a \
+             dispatch; an iteration is one round of them",
+            sweep.per_colour.len(),
+            opts.block_sweeps
+        ));
+    } else if opts.block_sweeps > 0 {
+        report.notes.push("block sweeps need a matrix-free problem: colour sweeps".into());
     }
     if let Some(mixer) = &mixer {
         let restarts = mixer.restarts(ctx).map_err(GpuError::Runtime)?;

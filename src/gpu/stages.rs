@@ -85,6 +85,42 @@ pub fn jacobi_update(
     read_back(ctx, &bufs[3], mu.len()).map_err(GpuError::Runtime)
 }
 
+/// Runs a matrix-free NLGS kernel once over `(r, v)` on `workgroups` workgroups: the operator's
+/// buffers, then `indices` by name, `r`, `v` and the kernel's uniform; returns the new `r` and `v`.
+#[allow(clippy::too_many_arguments)]
+fn nlgs_stage(
+    ctx: &GpuContext,
+    kernel: &Kernel,
+    op: &MatrixFreeLayout,
+    (diag, q, mu): (&[[f32; 4]], &[[f32; 2]], &[f32]),
+    indices: &[(&'static str, &[u32])],
+    uniform: (&'static str, &GpuBuffer),
+    workgroups: u32,
+    (r, v): (&[[f32; 2]], &[[f32; 4]]),
+) -> Result<ImpulsesAndVelocities, GpuError> {
+    let mut bufs = vec![
+        storage(ctx, "contacts", &op.contacts),
+        storage(ctx, "inv_mass", &op.inv_mass),
+        storage(ctx, "diag", diag),
+        storage(ctx, "q", q),
+        storage(ctx, "mu", mu),
+    ];
+    bufs.extend(indices.iter().map(|(name, x)| storage(ctx, name, x)));
+    bufs.extend([storage(ctx, "r", r), storage(ctx, "v", v)]);
+    let mut names = vec!["contacts", "inv_mass", "diag", "q", "mu"];
+    names.extend(indices.iter().map(|(name, _)| *name));
+    names.extend(["r", "v"]);
+    let mut all = named(&bufs, &names);
+    all.push(uniform);
+    let group = bind(ctx, kernel, &all);
+    submit(ctx, "stage", |pass| dispatch(pass, kernel, &group, workgroups));
+    let n = bufs.len();
+    Ok((
+        read_back(ctx, &bufs[n - 2], r.len()).map_err(GpuError::Runtime)?,
+        read_back(ctx, &bufs[n - 1], v.len()).map_err(GpuError::Runtime)?,
+    ))
+}
+
 /// One colour of the coloured NLGS sweep (matrix-free), updating only contacts whose residual in
 /// velocity units exceeds `threshold` when it is > 0: returns the new `r` and `v`.
 #[allow(clippy::too_many_arguments)]
@@ -103,24 +139,35 @@ pub fn nlgs_colour(
     let k = ctx.kernels(op.rotation, op.friction);
     let count = colouring.start[colour + 1] - colouring.start[colour];
     let range = super::kernels::uniform(ctx, "range", &[colouring.start[colour], count, threshold.to_bits(), 0]);
-    let bufs = [
-        storage(ctx, "contacts", &op.contacts),
-        storage(ctx, "inv_mass", &op.inv_mass),
-        storage(ctx, "diag", diag),
-        storage(ctx, "q", q),
-        storage(ctx, "mu", mu),
-        storage(ctx, "order", &colouring.order),
-        storage(ctx, "r", r),
-        storage(ctx, "v", v),
+    let indices = [("order", &colouring.order[..])];
+    nlgs_stage(ctx, &k.nlgs_colour, op, (diag, q, mu), &indices, ("range", &range), groups(count as usize), (r, v))
+}
+
+/// One block colour of a block sweep (matrix-free): each of its blocks swept `inner` times,
+/// colour by colour, updating only contacts above `threshold` when it is > 0; returns the new
+/// `r` and `v`.
+#[allow(clippy::too_many_arguments)]
+pub fn nlgs_blocks(
+    ctx: &GpuContext,
+    op: &MatrixFreeLayout,
+    w: (&[[f32; 4]], &[[f32; 2]], &[f32]),
+    blocks: &super::colouring::BlockColouring,
+    block_colour: usize,
+    inner: usize,
+    threshold: f32,
+    r_v: (&[[f32; 2]], &[[f32; 4]]),
+) -> Result<ImpulsesAndVelocities, GpuError> {
+    let k = ctx.kernels(op.rotation, op.friction);
+    let (first, end) = (blocks.blocks.start[block_colour], blocks.blocks.start[block_colour + 1]);
+    let fields = [first, end - first, threshold.to_bits(), inner as u32, blocks.colours as u32, 0, 0, 0];
+    let uniform = super::kernels::uniform(ctx, "blocks", &fields);
+    let indices = [
+        ("order", &blocks.order[..]),
+        ("colour_start", &blocks.colour_start[..]),
+        ("block_order", &blocks.blocks.order[..]),
     ];
-    let mut all = named(&bufs, &["contacts", "inv_mass", "diag", "q", "mu", "order", "r", "v"]);
-    all.push(("range", &range));
-    let group = bind(ctx, &k.nlgs_colour, &all);
-    run(ctx, &k.nlgs_colour, &group, count as usize);
-    Ok((
-        read_back(ctx, &bufs[6], r.len()).map_err(GpuError::Runtime)?,
-        read_back(ctx, &bufs[7], v.len()).map_err(GpuError::Runtime)?,
-    ))
+    // A workgroup per block.
+    nlgs_stage(ctx, &k.nlgs_blocks, op, w, &indices, ("blocks", &uniform), end - first, r_v)
 }
 
 /// One colour of the coloured NLGS sweep on an explicit `W`: returns the new `r`.

@@ -79,7 +79,7 @@ pub fn nlgs_sweep_times(ctx: &GpuContext, p: &ContactProblem, n: usize, depth: u
     let gp = GpuProblem::upload(ctx, p);
     let r0 = vec![[0.0f32; 2]; p.n_contacts()];
     let r = storage(ctx, "r", &r0);
-    let sweep = ColouredSweep::new(ctx, p, &gp, &r, 0.0);
+    let sweep = ColouredSweep::new(ctx, p, &gp, &r, 0.0, 0);
     let (colours, largest) = sweep.colours();
     run(ctx, 3, |pass| sweep.record(pass))?; // warm-up, as for the products
     let (sweep_time, largest_colour) =
@@ -102,4 +102,19 @@ pub fn nlgs_sweep_times(ctx: &GpuContext, p: &ContactProblem, n: usize, depth: u
         }
     };
     Ok(SweepTimes { sweep: sweep_time, colours, largest_colour, mixing })
+}
+
+/// A round of block sweeps of `p` (`inner` sweeps of each block a dispatch, a dispatch per block
+/// colour), timed from r = 0 (`n` in one submit, no check): seconds a round, and its dispatches.
+pub fn block_round_time(
+    ctx: &GpuContext,
+    p: &ContactProblem,
+    n: usize,
+    inner: usize,
+) -> Result<(f64, usize), GpuError> {
+    let gp = GpuProblem::upload(ctx, p);
+    let r = storage(ctx, "r", &vec![[0.0f32; 2]; p.n_contacts()]);
+    let sweep = ColouredSweep::new(ctx, p, &gp, &r, 0.0, inner);
+    run(ctx, 3, |pass| sweep.record(pass))?;
+    Ok((run(ctx, n, |pass| sweep.record(pass))?, sweep.colours().0))
 }

@@ -104,6 +104,8 @@ struct SolverSpec {
     anderson: Option<usize>,
     /// NLGS: focused sweeps after each full sweep (0: off).
     focus: Option<usize>,
+    /// GPU NLGS: sweeps of each block of contacts per dispatch (0: colour sweeps).
+    block_sweeps: Option<usize>,
     /// natural (default), velocity, quad, maxm, qm16 (LMGC90's tests).
     criterion: Option<String>,
 }
@@ -814,6 +816,7 @@ impl Builder<'_> {
             options.omega = s.omega.unwrap_or(1.0);
             options.anderson = s.anderson.unwrap_or(0);
             options.focus = s.focus.unwrap_or(0);
+            options.block_sweeps = s.block_sweeps.unwrap_or(0);
             if let Some(c) = &s.criterion {
                 options.criterion = StopCriterion::from_name(c)
                     .or_else(|why| self.cx.err(solver_span.clone(), "solver.criterion", why))?;

@@ -262,6 +262,10 @@ pub struct SolverOptions {
     pub focus: usize,
     /// Projected Jacobi relaxation (step = ω / mean diagonal of the contact block).
     pub jacobi_omega: f64,
+    /// GPU NLGS on a matrix-free problem: sweeps blocks of contacts this many times per dispatch
+    /// (`nlgs_blocks.wgsl`) instead of a dispatch per colour and sweep; 0: colour sweeps. An
+    /// iteration is then one round of the block colours. The CPU sweeps as `ordering` says.
+    pub block_sweeps: usize,
     /// LATIN search direction: `k = factor · diag(W_αα)` per component (compliance units), the
     /// factor given or chosen by the solver.
     pub latin_k: LatinK,
@@ -295,6 +299,7 @@ impl Default for SolverOptions {
             anderson: 0,
             focus: 0,
             jacobi_omega: 0.5,
+            block_sweeps: 0,
             latin_k: LatinK::Auto,
             latin_k_mean: false,
             newton_linear: NewtonLinear::Gmres,
@@ -342,6 +347,10 @@ impl SolverOptions {
             let rule = "at most 100 focused sweeps after each full sweep";
             return Err(OptionError { name: "focus", value: self.focus.to_string(), rule });
         }
+        if self.block_sweeps > MAX_BLOCK_SWEEPS {
+            let rule = "a block is swept at most 64 times a dispatch";
+            return Err(OptionError { name: "block_sweeps", value: self.block_sweeps.to_string(), rule });
+        }
         if self.anderson > MAX_ANDERSON {
             let rule = "Anderson acceleration keeps at most 50 past sweeps";
             return Err(OptionError { name: "anderson", value: self.anderson.to_string(), rule });
@@ -352,6 +361,9 @@ impl SolverOptions {
 
 /// Most past sweeps Anderson acceleration may mix.
 pub const MAX_ANDERSON: usize = 50;
+
+/// Most sweeps of a block per dispatch ([`SolverOptions::block_sweeps`]).
+pub const MAX_BLOCK_SWEEPS: usize = 64;
 
 /// Most focused sweeps after a full sweep ([`SolverOptions::focus`]).
 pub const MAX_FOCUS: usize = 100;

@@ -42,6 +42,14 @@ const MIN_TASK: usize = 256;
 /// Solves from `r` by NLGS (by blocks, else by colours, on threads for a large matrix-free
 /// problem), mixing its sweeps when `opts.anderson` asks for it.
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveReport {
+    let mut report = solve_as_ordered(p, opts, r);
+    if opts.block_sweeps > 0 {
+        report.notes.push(format!("block sweeps are the GPU's: the CPU swept in {} order", opts.ordering.name()));
+    }
+    report
+}
+
+fn solve_as_ordered(p: &ContactProblem, opts: &SolverOptions, r: Vec<f64>) -> SolveReport {
     match &p.w {
         // Forward within each colour: the colour ranges are swept in order, on any thread count.
         Delassus::MatrixFree(op) if opts.ordering == Ordering::Worklist => worklist::solve(p, op, opts, r),

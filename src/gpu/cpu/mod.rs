@@ -18,6 +18,7 @@ pub mod cpg_scalars;
 pub mod cpg_update;
 pub mod jacobi_update;
 pub mod natural_map;
+pub mod nlgs_blocks;
 pub mod nlgs_colour;
 pub mod nlgs_colour_bsr;
 pub mod reduce_dot;

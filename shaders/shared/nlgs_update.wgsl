@@ -1,0 +1,54 @@
+// One contact's NLGS update on the matrix-free operator: its velocity from the body velocities
+// v = M⁻¹ Bᵀ r, the single-contact solve, and the impulse change scattered into v. The kernel
+// that imports it declares the bindings it reads by these names: contacts, inv_mass, diag, q,
+// mu, r, v. The caller guarantees that no other invocation touches the contact's moving bodies
+// meanwhile. With a threshold (the work list's sweeps), a contact whose residual in velocity
+// units is within it is left alone: converged contacts do not drift.
+// CPU mirror: src/gpu/cpu/nlgs_colour.rs
+
+fn scatter(k: u32, s: f32, f: vec2<f32>, torque: f32) {
+    let im = inv_mass[k];
+    if (im.x == 0.0 && im.y == 0.0) {
+        return; // a fixed body: several contacts of one colour may touch it
+    }
+    var dv = v[k];
+    dv = vec4<f32>(dv.xy + s * im.x * f, dv.z + s * im.y * torque, 0.0);
+    v[k] = dv;
+}
+
+fn nlgs_update(a: u32, threshold: f32) {
+    let c = contacts[a];
+    let t = vec2<f32>(-c.n.y, c.n.x);
+    var vj = vec4<f32>(0.0);
+    if (c.j != NO_BODY) {
+        vj = v[c.j];
+    }
+    let w = diag[a];
+    let ra = r[a];
+    let u = relative_velocity(c, v[c.i], vj) + q[a];
+    if (threshold > 0.0 && sc_velocity_residual(w.x, ra, u, mu[a]) <= threshold) {
+        return;
+    }
+    let q_local = u - vec2<f32>(w.x * ra.x + w.y * ra.y, w.z * ra.x + w.w * ra.y);
+    let rn = solve_single_contact(w, q_local, mu[a]);
+    let d = rn - ra;
+    r[a] = rn;
+    var f = d.x * c.n;
+    if (FRICTION) {
+        f = f + d.y * t;
+    }
+    var ti = 0.0;
+    var tj = 0.0;
+    if (ROTATION) {
+        ti = d.x * c.levers.x;
+        tj = d.x * c.levers.z;
+        if (FRICTION) {
+            ti = ti + d.y * c.levers.y;
+            tj = tj + d.y * c.levers.w;
+        }
+    }
+    scatter(c.i, 1.0, f, ti);
+    if (c.j != NO_BODY) {
+        scatter(c.j, -1.0, f, tj);
+    }
+}
