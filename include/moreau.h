@@ -62,6 +62,10 @@ typedef struct MoreauSolveOptions {
   // its exact local answer and projected back onto its cone. 0: 1 for a solve, unchanged for a
   // simulation.
   double omega;
+  // GPU NLGS on a simulation's matrix-free steps: sweeps blocks of contacts this many times a
+  // dispatch (at most 64; 0: a dispatch per colour and sweep). The CPU sweeps as `ordering`
+  // says.
+  size_t block_sweeps;
 } MoreauSolveOptions;
 
 // A solve's numbers (the arrays are copied out with `moreau_solution_copy_r` / `_u`).
@@ -185,14 +189,15 @@ enum MoreauStatus moreau_simulation_set_device(struct MoreauSimulation *sim,
                                                size_t threads);
 
 // The solver settings of the simulation's steps (a scene's, or those set since): `tol`,
-// `max_iter`, `anderson`, `omega`; the names NULL (unchanged when handed back to
-// `moreau_simulation_set_solver`), `threads` 0.
+// `max_iter`, `anderson`, `omega`, `block_sweeps`; the names NULL (unchanged when handed back
+// to `moreau_simulation_set_solver`), `threads` 0.
 enum MoreauStatus moreau_simulation_solve_options(const struct MoreauSimulation *sim,
                                                   struct MoreauSolveOptions *out);
 
-// Sets the solver of the following steps from `options`: `tol`, `max_iter`, `anderson`, and
-// the solver, criterion, ordering and relaxation each NULL (or 0) keeps (`device` and `threads` are
-// `moreau_simulation_set_device`'s). Settings that cannot run are refused and change nothing.
+// Sets the solver of the following steps from `options`: `tol`, `max_iter`, `anderson`,
+// `block_sweeps`, and the solver, criterion, ordering and relaxation each NULL (or 0) keeps
+// (`device` and `threads` are `moreau_simulation_set_device`'s). Settings that cannot run are
+// refused and change nothing.
 enum MoreauStatus moreau_simulation_set_solver(struct MoreauSimulation *sim,
                                                const struct MoreauSolveOptions *options);
 

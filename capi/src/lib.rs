@@ -78,6 +78,10 @@ pub struct MoreauSolveOptions {
     /// its exact local answer and projected back onto its cone. 0: 1 for a solve, unchanged for a
     /// simulation.
     pub omega: f64,
+    /// GPU NLGS on a simulation's matrix-free steps: sweeps blocks of contacts this many times a
+    /// dispatch (at most 64; 0: a dispatch per colour and sweep). The CPU sweeps as `ordering`
+    /// says.
+    pub block_sweeps: usize,
 }
 
 /// A solve's numbers (the arrays are copied out with `moreau_solution_copy_r` / `_u`).
@@ -325,11 +329,12 @@ pub extern "C" fn moreau_solve_options_default() -> MoreauSolveOptions {
         criterion: std::ptr::null(),
         ordering: std::ptr::null(),
         omega: d.omega,
+        block_sweeps: d.block_sweeps,
     }
 }
 
-/// `o`'s settings over `now`: `tol`, `max_iter`, `anderson`, and the criterion, the ordering and
-/// the relaxation, each NULL (0 for the relaxation) one taken from `now`.
+/// `o`'s settings over `now`: `tol`, `max_iter`, `anderson`, `block_sweeps`, and the criterion,
+/// the ordering and the relaxation, each NULL (0 for the relaxation) one taken from `now`.
 fn options_over(o: &MoreauSolveOptions, now: &SolverOptions) -> Result<SolverOptions, Failure> {
     let invalid = |e: String| (MoreauStatus::InvalidArgument, e);
     let criterion = match o.criterion.is_null() {
@@ -345,6 +350,7 @@ fn options_over(o: &MoreauSolveOptions, now: &SolverOptions) -> Result<SolverOpt
         tol: o.tol,
         max_iter: o.max_iter,
         anderson: o.anderson,
+        block_sweeps: o.block_sweeps,
         criterion,
         ordering,
         omega,
@@ -453,8 +459,8 @@ pub extern "C" fn moreau_simulation_set_device(
 }
 
 /// The solver settings of the simulation's steps (a scene's, or those set since): `tol`,
-/// `max_iter`, `anderson`, `omega`; the names NULL (unchanged when handed back to
-/// `moreau_simulation_set_solver`), `threads` 0.
+/// `max_iter`, `anderson`, `omega`, `block_sweeps`; the names NULL (unchanged when handed back
+/// to `moreau_simulation_set_solver`), `threads` 0.
 #[no_mangle]
 pub extern "C" fn moreau_simulation_solve_options(
     sim: *const MoreauSimulation,
@@ -472,14 +478,16 @@ pub extern "C" fn moreau_simulation_solve_options(
             criterion: std::ptr::null(),
             ordering: std::ptr::null(),
             omega: o.omega,
+            block_sweeps: o.block_sweeps,
         };
         copy_out(&[options], out, 1, "out")
     })
 }
 
-/// Sets the solver of the following steps from `options`: `tol`, `max_iter`, `anderson`, and
-/// the solver, criterion, ordering and relaxation each NULL (or 0) keeps (`device` and `threads` are
-/// `moreau_simulation_set_device`'s). Settings that cannot run are refused and change nothing.
+/// Sets the solver of the following steps from `options`: `tol`, `max_iter`, `anderson`,
+/// `block_sweeps`, and the solver, criterion, ordering and relaxation each NULL (or 0) keeps
+/// (`device` and `threads` are `moreau_simulation_set_device`'s). Settings that cannot run are
+/// refused and change nothing.
 #[no_mangle]
 pub extern "C" fn moreau_simulation_set_solver(
     sim: *mut MoreauSimulation,

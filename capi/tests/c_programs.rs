@@ -226,6 +226,12 @@ fn a_c_program_sets_the_time_step_as_the_library_does() {
     let (code, _, err) = run(&program, &[scene.to_str().unwrap(), "1", "1", "-", "-", "-0.001"]);
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("time step -0.001 must be finite and > 0"), "{err}");
+    // The GPU's block sweeps are a setting like the others: in range kept, out of range refused.
+    let (code, out, err) = run(&program, &[scene.to_str().unwrap(), "2", "1", "-", "-", "-", "4"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let (code, _, err) = run(&program, &[scene.to_str().unwrap(), "1", "1", "-", "-", "-", "65"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("block_sweeps 65: a block is swept at most 64 times a dispatch"), "{err}");
 }
 
 #[test]

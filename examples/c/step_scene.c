@@ -1,10 +1,11 @@
 /* Steps a moreau scene file from C and prints the state a host would read back.
  *
  *   cc -I include examples/c/step_scene.c -L target/release -lmoreau_c -o step_scene
- *   ./step_scene SCENE.toml [STEPS [THREADS [ORDERING [CRITERION [TIME_STEP]]]]]
+ *   ./step_scene SCENE.toml [STEPS [THREADS [ORDERING [CRITERION [TIME_STEP [BLOCK_SWEEPS]]]]]]
  *
  * ORDERING and CRITERION replace the scene's (`worklist` and `velocity` suit a settled pile; `-`
- * keeps the scene's), and TIME_STEP its time step in seconds.
+ * keeps the scene's), TIME_STEP its time step in seconds (`-` keeps it), and BLOCK_SWEEPS its GPU
+ * block sweeps (the steps here run on the CPU, which refuses the same out-of-range values).
  *
  * Exit status: 0 every step converged, 3 some did not, 1 an error (the message names it). */
 #include <stdio.h>
@@ -15,7 +16,8 @@
 
 int main(int argc, char **argv) {
     if (argc < 2) {
-        fprintf(stderr, "usage: %s SCENE.toml [STEPS [THREADS [ORDERING [CRITERION [TIME_STEP]]]]]\n", argv[0]);
+        fprintf(stderr, "usage: %s SCENE.toml [STEPS [THREADS [ORDERING [CRITERION [TIME_STEP [BLOCK_SWEEPS]]]]]]\n",
+                argv[0]);
         return 2;
     }
     int steps = argc > 2 ? atoi(argv[2]) : 100;
@@ -33,8 +35,11 @@ int main(int argc, char **argv) {
         int ok = moreau_simulation_solve_options(sim, &options) == MOREAU_STATUS_OK;
         options.ordering = strcmp(argv[4], "-") ? argv[4] : NULL;
         options.criterion = argc > 5 && strcmp(argv[5], "-") ? argv[5] : NULL;
+        if (argc > 7) {
+            options.block_sweeps = (size_t)atoi(argv[7]);
+        }
         if (!ok || moreau_simulation_set_solver(sim, &options) != MOREAU_STATUS_OK ||
-            (argc > 6 && moreau_simulation_set_time_step(sim, atof(argv[6])) != MOREAU_STATUS_OK)) {
+            (argc > 6 && strcmp(argv[6], "-") && moreau_simulation_set_time_step(sim, atof(argv[6])) != MOREAU_STATUS_OK)) {
             fprintf(stderr, "error: %s\n", moreau_last_error());
             moreau_simulation_free(sim);
             return 1;
