@@ -264,7 +264,8 @@ pub struct SolverOptions {
     pub jacobi_omega: f64,
     /// GPU NLGS on a matrix-free problem: sweeps blocks of contacts this many times per dispatch
     /// (`nlgs_blocks.wgsl`) instead of a dispatch per colour and sweep; 0: colour sweeps. An
-    /// iteration is then one round of the block colours. The CPU sweeps as `ordering` says.
+    /// iteration is then one round of the block colours, and `max_iter` bounds rounds, each of
+    /// `block_sweeps` sweeps. The CPU sweeps as `ordering` says.
     pub block_sweeps: usize,
     /// LATIN search direction: `k = factor · diag(W_αα)` per component (compliance units), the
     /// factor given or chosen by the solver.
