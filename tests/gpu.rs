@@ -327,6 +327,29 @@ fn block_sweeps_solve_what_colour_sweeps_solve_in_fewer_dispatches() {
     }
 }
 
+/// Contacts numbered in no spatial order make every block touch every other: such blocks would
+/// need more dispatches a round than the contacts' colours, and the GPU sweeps by colours and
+/// says why. A lattice of about 51,000 contacts (13 blocks), numbered in space and shuffled.
+#[test]
+fn blocks_of_contacts_numbered_in_no_spatial_order_give_way_to_colour_sweeps() {
+    use rand::seq::SliceRandom;
+    let Some(ctx) = common::gpu_context() else { return };
+    let p = lattice_packing(160, 160, 0.3, 1);
+    let Delassus::MatrixFree(op) = &p.w else { unreachable!() };
+    let mut order: Vec<usize> = (0..p.n_contacts()).collect();
+    order.shuffle(&mut rand::rngs::SmallRng::seed_from_u64(5));
+    let q: Vec<f64> = order.iter().flat_map(|&a| [p.q[2 * a], p.q[2 * a + 1]]).collect();
+    let mu: Vec<f64> = order.iter().map(|&a| p.mu[a]).collect();
+    let shuffled = ContactProblem::new(Delassus::MatrixFree(op.permuted(&order)), q, mu).unwrap();
+    let opts = SolverOptions { tol: 1e-4, max_iter: 2, block_sweeps: 4, ..Default::default() };
+    for (name, problem, blocks) in [("in space", &p, true), ("shuffled", &shuffled, false)] {
+        let run = moreau::gpu::solve(&ctx, problem, SolverKind::Nlgs, &opts, None).unwrap();
+        let noted = |start: &str| run.notes.iter().any(|n| n.starts_with(start));
+        assert_eq!(noted("block sweeps: 13 blocks"), blocks, "{name}: {:?}", run.notes);
+        assert_eq!(noted("block sweeps not used, its blocks would need more dispatches"), !blocks, "{name}");
+    }
+}
+
 /// A simulation stepped with block sweeps keeps the CPU run's physics: `scenes/pile.toml` (400
 /// disks falling into a box, NLGS at tol 1e-4 with Anderson 5), 60 steps on the CPU and on the
 /// GPU with 4 sweeps of each block a dispatch. Every GPU step converges (judged in f64) and the

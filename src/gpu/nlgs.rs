@@ -132,8 +132,12 @@ impl ColouredSweep {
                     ("v", &v),
                 ];
                 let velocities = Some((accumulate, layout.inv_mass.len()));
-                if block_sweeps > 0 {
-                    let blocks = BlockColouring::new(layout, &colouring, BLOCK_CONTACTS);
+                // Blocks that need more dispatches a round than the contacts' colours (contacts
+                // numbered in no spatial order: every block touches every other) sweep by colours.
+                let blocks = (block_sweeps > 0)
+                    .then(|| BlockColouring::new(layout, &colouring, BLOCK_CONTACTS))
+                    .filter(|b| b.blocks.n_colours() <= colouring.n_colours());
+                if let Some(blocks) = blocks {
                     let order = storage(ctx, "order", &blocks.order);
                     let colour_start = storage(ctx, "colour_start", &blocks.colour_start);
                     let block_order = storage(ctx, "block_order", &blocks.blocks.order);
@@ -217,6 +221,12 @@ impl ColouredSweep {
         self.velocities.as_ref().map(|(group, bodies)| (group, *bodies))
     }
 
+    /// Whether it sweeps by blocks (block sweeps asked for, on a matrix-free problem whose blocks
+    /// need no more dispatches a round than its colours).
+    pub fn by_blocks(&self) -> bool {
+        self.dispatches == Dispatches::Blocks
+    }
+
     /// Dispatches a sweep records (its colours, or its block colours), and the largest one (most
     /// contacts, or most blocks).
     pub fn colours(&self) -> (usize, usize) {
@@ -244,8 +254,8 @@ pub fn solve(
     } else {
         0.0
     };
-    let blocked = opts.block_sweeps > 0 && matches!(p.w, Delassus::MatrixFree(_));
     let sweep = ColouredSweep::new(ctx, p, &gp, &r_buf, threshold, opts.block_sweeps);
+    let blocked = sweep.by_blocks();
     // Deeper histories are cut to the kernels' (backend::gpu_omits says so); the work list's
     // sweeps are not mixed, as on the CPU: a mix would move the contacts it leaves alone.
     let depth = if worklist { 0 } else { opts.anderson.min(MAX_DEPTH) };
@@ -275,7 +285,14 @@ pub fn solve(
             opts.block_sweeps
         ));
     } else if opts.block_sweeps > 0 {
-        report.notes.push("block sweeps need a matrix-free problem: colour sweeps".into());
+        let why = match p.w {
+            Delassus::MatrixFree(_) => {
+                "its blocks would need more dispatches a round than its colours \
+                                        (contacts numbered in no spatial order)"
+            }
+            Delassus::Sparse(_) => "they need a matrix-free problem",
+        };
+        report.notes.push(format!("block sweeps not used, {why}: colour sweeps"));
     }
     if let Some(mixer) = &mixer {
         let restarts = mixer.restarts(ctx).map_err(GpuError::Runtime)?;
