@@ -791,29 +791,38 @@ fn reductions_cpg_and_apgd_stages_match_their_mirrors() {
     let mut f_cpu = w0.clone();
     cpu::natural_map::natural_map(&r, &u, &mu, &mut f_cpu);
     assert_close(&floats(&out[0]), f_cpu.as_flattened(), "natural_map");
-    // The velocity test's estimate: the largest scaled residual per 1,024 contacts, on sizes
-    // around the chunk boundary, against the mirror and against f64.
+    // The velocity test's estimate: the largest scaled residual per 1,024 contacts and a sum
+    // that a diverged iterate makes non-finite, on sizes around the chunk boundary, against the
+    // mirror and against f64; then with one impulse NaN.
     for n in [1usize, 1024, 1025, nc] {
         let c: Vec<f32> = (0..n).map(|_| rng.gen_range(0.1..10.0)).collect();
-        let (r, u, mu) = (&r[..n], &u[..n], &mu[..n]);
-        let parts = cpu::velocity_residual::velocity_residual(r, u, mu, &c);
+        let (u, mu) = (&u[..n], &mu[..n]);
+        let mut r = r[..n].to_vec();
+        let run = |r: &[[f32; 2]], groups: usize| {
+            let out = stages::run_raw(
+                &ctx,
+                |k: &Kernels| &k.velocity_residual,
+                &[
+                    &b(r),
+                    &b(u),
+                    bytemuck::cast_slice(mu),
+                    bytemuck::cast_slice(&c),
+                    bytemuck::cast_slice(&vec![[-1.0f32; 2]; groups]),
+                ],
+                &[],
+                groups as u32,
+                &[4],
+            )
+            .unwrap();
+            floats(&out[0])
+        };
+        let parts = cpu::velocity_residual::velocity_residual(&r, u, mu, &c);
         assert_eq!(parts.len(), n.div_ceil(1024));
-        let out = stages::run_raw(
-            &ctx,
-            |k: &Kernels| &k.velocity_residual,
-            &[
-                &b(r),
-                &b(u),
-                bytemuck::cast_slice(mu),
-                bytemuck::cast_slice(&c),
-                bytemuck::cast_slice(&vec![-1.0f32; parts.len()]),
-            ],
-            &[],
-            parts.len() as u32,
-            &[4],
-        )
-        .unwrap();
-        assert_close(&floats(&out[0]), &parts, "velocity_residual");
+        let out = run(&r, parts.len());
+        let column = |x: &[f32], k: usize| x.iter().skip(k).step_by(2).copied().collect::<Vec<_>>();
+        for (k, what) in [(0, "velocity_residual: largest"), (1, "velocity_residual: witness")] {
+            assert_close(&column(&out, k), &column(parts.as_flattened(), k), what);
+        }
         let f64_worst = (0..n)
             .map(|a| {
                 let cr = [c[a] as f64 * r[a][0] as f64, c[a] as f64 * r[a][1] as f64];
@@ -821,11 +830,20 @@ fn reductions_cpg_and_apgd_stages_match_their_mirrors() {
                 f[0].hypot(f[1])
             })
             .fold(0.0f64, f64::max);
-        let worst = parts.iter().fold(0.0f32, |m, &x| m.max(x)) as f64;
+        let worst = parts.iter().fold(0.0f32, |m, p| m.max(p[0])) as f64;
         assert!(
             worst > 0.0 && (worst - f64_worst).abs() <= 1e-5 * f64_worst.max(1.0),
             "n = {n}: {worst} vs {f64_worst}"
         );
+        let f64_size: f64 = r.iter().chain(u).map(|x| x[0].abs() as f64 + x[1].abs() as f64).sum();
+        let size: f64 = parts.iter().map(|p| p[1] as f64).sum();
+        assert!((size - f64_size).abs() <= 1e-5 * f64_size, "n = {n}: witness {size} vs {f64_size}");
+        // A NaN in the last chunk: its witness is not finite, the others' are.
+        r[n - 1][1] = f32::NAN;
+        let out = run(&r, parts.len());
+        let last = out.len() - 1;
+        assert!(!out[last].is_finite(), "n = {n}: a NaN impulse left the witness {}", out[last]);
+        assert!(out[..last].iter().all(|x| x.is_finite()), "n = {n}: a NaN reached another chunk");
     }
     // APGD stages.
     let s_thr: Vec<f32> = (0..nc).map(|_| rng.gen_range(0.0..0.5)).collect();

@@ -1,10 +1,11 @@
 //! The loop every GPU solver shares: record K iterations per submit, then estimate the error on
 //! the GPU (`natural_map.wgsl` and three deterministic reductions: only three numbers come back);
 //! when the estimate reaches the tolerance, read `r` back and judge it in f64 on the CPU with the
-//! core's measure — that f64 error alone decides convergence. Under `criterion = velocity`,
-//! whose measure the natural-map estimate does not bound, the estimate is that measure's own
-//! (`velocity_residual.wgsl`: the largest residual of each 1,024 contacts comes back), and the
-//! f64 judge is the CPU's [`JudgedMeasure`]. Stop at the tolerance, at max_iter, or when the
+//! core's measure — that f64 error alone decides convergence. Under the velocity tests, whose
+//! measure the natural-map estimate does not bound, the estimate is that measure's own, in one
+//! dispatch after the product (`velocity_residual.wgsl`: the largest residual of each 1,024
+//! contacts comes back, with a sum that shows a diverged iterate), and the f64 judge is the
+//! CPU's [`JudgedMeasure`]. Stop at the tolerance, at max_iter, or when the
 //! error stops improving below 1e-3 (a plateau where f32 may be the limit, reported). K doubles
 //! while the error is more than 100 × tol away; near tol it starts again at 16 and doubles up to
 //! 128 while the error stays near.
@@ -249,26 +250,44 @@ pub fn iterate(
     })
 }
 
-/// The on-GPU error estimate: `u = W r + q`, per-contact residuals, and |F|², |r|², |u|² reduced
-/// into three slots; the estimate is |F| / max(|q|, |r|, |u|) as the core measures it (|q| in f64,
-/// gap terms left out as the core leaves them). Under the velocity test, also the largest
-/// per-contact residual in velocity units over the largest free velocity, as
-/// [`crate::problem::residual::velocity_error`] measures it, which is then the estimate.
+/// The on-GPU error estimate of the impulses the solver's buffer holds: `u = W r + q`, then the
+/// criterion's own measure of it ([`Estimate`]). Only a few numbers come back.
 struct Checker {
     operator: GpuOperator,
     kernels: std::sync::Arc<super::kernels::Kernels>,
-    residual: BindGroup,
-    dots: [Dot; 3],
-    scalars: GpuBuffer,
-    q_norm: f64,
-    gap_norm: f64,
-    groups: u32,
-    velocity: Option<VelocityEstimate>,
+    estimate: Estimate,
     r_buf: GpuBuffer,
     /// The impulses at the last check, kept while the next batch runs.
     snapshot: GpuBuffer,
     contacts: usize,
-    _buffers: Vec<GpuBuffer>,
+    _u: GpuBuffer,
+}
+
+/// What a check measures on `u`.
+enum Estimate {
+    /// The natural map's |F| / max(|q|, |r|, |u|) as the core measures it: per-contact residuals
+    /// and |F|², |r|², |u|² reduced into three slots (|q| in f64, gap terms left out as the core
+    /// leaves them).
+    Natural {
+        residual: BindGroup,
+        dots: Box<[Dot; 3]>,
+        scalars: GpuBuffer,
+        q_norm: f64,
+        gap_norm: f64,
+        groups: u32,
+        _buffers: [GpuBuffer; 2],
+    },
+    /// Under a velocity test, the largest per-contact residual in velocity units over the largest
+    /// free velocity, as [`crate::problem::residual::velocity_error`] measures it: one dispatch,
+    /// whose partials carry a finiteness witness in place of the natural map's sums.
+    Velocity {
+        residual: BindGroup,
+        partials: GpuBuffer,
+        groups: usize,
+        /// The largest free velocity (f64, gap terms left out).
+        scale: f64,
+        _c: GpuBuffer,
+    },
 }
 
 /// Impulses as the GPU holds them.
@@ -280,85 +299,66 @@ struct PendingCheck {
     with_impulses: bool,
 }
 
-/// The velocity test's estimate: `velocity_residual` over the checker's `u`.
-struct VelocityEstimate {
-    residual: BindGroup,
-    partials: GpuBuffer,
-    groups: usize,
-    /// The largest free velocity (f64, gap terms left out).
-    scale: f64,
-    _c: GpuBuffer,
-}
-
 impl Checker {
     fn new(ctx: &GpuContext, p: &ContactProblem, gp: &GpuProblem, r_buf: &GpuBuffer, criterion: StopCriterion) -> Self {
         let nc = p.n_contacts();
         let kernels = gp.kernels.clone();
         let u = storage(ctx, "u check", &vec![[0.0f32; 2]; nc]);
-        let f = storage(ctx, "f", &vec![[0.0f32; 2]; nc]);
-        let scalars = storage(ctx, "check scalars", &[0.0f32; 4]);
-        let partials = storage(ctx, "check partials", &vec![0.0f32; partials_len(2 * nc)]);
         let operator = gp.product(ctx, r_buf, &gp.q, &u);
-        let residual = bind(ctx, &kernels.natural_map, &[("r", r_buf), ("u", &u), ("mu", &gp.mu), ("f", &f)]);
-        let n = 2 * nc;
-        let dots = [
-            Dot::new(ctx, &kernels, &f, &f, n, &partials, &scalars, 0),
-            Dot::new(ctx, &kernels, r_buf, r_buf, n, &partials, &scalars, 1),
-            Dot::new(ctx, &kernels, &u, &u, n, &partials, &scalars, 2),
-        ];
-        // The core's scale leaves each open contact's gap term s out of q and u; |u − s| is not
-        // reduced here, so |u| − |s| (at most |u − s|) stands in: the estimate can only grow.
-        let q_norm = (0..p.q.len()).map(|k| (p.q[k] - gap_term(&p.gap_rate, k)).powi(2)).sum::<f64>().sqrt();
-        let gap_norm = p.gap_rate.iter().map(|g| g * g).sum::<f64>().sqrt();
-        let velocity = criterion.is_velocity_test().then(|| {
+        let estimate = if criterion.is_velocity_test() {
             let c = storage(ctx, "W_aa,nn", &p.w.diag_blocks().iter().map(|d| d[0] as f32).collect::<Vec<_>>());
             let groups = velocity_groups(nc);
-            let partials = storage(ctx, "velocity partials", &vec![0.0f32; groups]);
+            let partials = storage(ctx, "velocity partials", &vec![[0.0f32; 2]; groups]);
             let residual = bind(
                 ctx,
                 &kernels.velocity_residual,
                 &[("r", r_buf), ("u", &u), ("mu", &gp.mu), ("c", &c), ("partials", &partials)],
             );
-            VelocityEstimate { residual, partials, groups, scale: velocity_scale(p, criterion), _c: c }
-        });
-        let _buffers = vec![u, f, partials];
+            Estimate::Velocity { residual, partials, groups, scale: velocity_scale(p, criterion), _c: c }
+        } else {
+            let f = storage(ctx, "f", &vec![[0.0f32; 2]; nc]);
+            let scalars = storage(ctx, "check scalars", &[0.0f32; 4]);
+            let partials = storage(ctx, "check partials", &vec![0.0f32; partials_len(2 * nc)]);
+            let residual = bind(ctx, &kernels.natural_map, &[("r", r_buf), ("u", &u), ("mu", &gp.mu), ("f", &f)]);
+            let n = 2 * nc;
+            let dots = Box::new([
+                Dot::new(ctx, &kernels, &f, &f, n, &partials, &scalars, 0),
+                Dot::new(ctx, &kernels, r_buf, r_buf, n, &partials, &scalars, 1),
+                Dot::new(ctx, &kernels, &u, &u, n, &partials, &scalars, 2),
+            ]);
+            // The core's scale leaves each open contact's gap term s out of q and u; |u − s| is not
+            // reduced here, so |u| − |s| (at most |u − s|) stands in: the estimate can only grow.
+            let q_norm = (0..p.q.len()).map(|k| (p.q[k] - gap_term(&p.gap_rate, k)).powi(2)).sum::<f64>().sqrt();
+            let gap_norm = p.gap_rate.iter().map(|g| g * g).sum::<f64>().sqrt();
+            Estimate::Natural { residual, dots, scalars, q_norm, gap_norm, groups: groups(nc), _buffers: [f, partials] }
+        };
         let snapshot = storage(ctx, "r at check", &vec![[0.0f32; 2]; nc]);
-        Self {
-            operator,
-            kernels,
-            residual,
-            dots,
-            scalars,
-            q_norm,
-            gap_norm,
-            groups: groups(nc),
-            velocity,
-            r_buf: r_buf.clone(),
-            snapshot,
-            contacts: nc,
-            _buffers,
-        }
+        Self { operator, kernels, estimate, r_buf: r_buf.clone(), snapshot, contacts: nc, _u: u }
     }
 
     /// Submits the estimate of the impulses the solver's buffer holds now, keeping a copy of them
-    /// on the GPU ([`Checker::snapshot`]); `with_impulses`: they come back with the sums.
+    /// on the GPU ([`Checker::snapshot`]); `with_impulses`: they come back with the estimate.
     fn submit(&self, ctx: &GpuContext, with_impulses: bool) -> PendingCheck {
         let k = &self.kernels;
-        let mut reads = vec![(&*self.scalars, 3 * 4)];
-        if let Some(v) = &self.velocity {
-            reads.push((&*v.partials, 4 * v.groups));
-        }
+        let mut reads = match &self.estimate {
+            Estimate::Natural { scalars, .. } => vec![(&**scalars, 3 * 4)],
+            Estimate::Velocity { partials, groups, .. } => vec![(&**partials, 8 * groups)],
+        };
         if with_impulses {
             reads.push((&*self.r_buf, 8 * self.contacts));
         }
         let mut encoder = encode_pass(ctx, "check", |pass| {
             self.operator.record(k, pass);
-            dispatch(pass, &k.natural_map, &self.residual, self.groups);
-            for d in &self.dots {
-                d.record(k, pass);
-            }
-            if let Some(v) = &self.velocity {
-                dispatch(pass, &k.velocity_residual, &v.residual, v.groups as u32);
+            match &self.estimate {
+                Estimate::Natural { residual, dots, groups, .. } => {
+                    dispatch(pass, &k.natural_map, residual, *groups);
+                    for d in dots.iter() {
+                        d.record(k, pass);
+                    }
+                }
+                Estimate::Velocity { residual, groups, .. } => {
+                    dispatch(pass, &k.velocity_residual, residual, *groups as u32)
+                }
             }
         });
         // (wgpu copies no empty range)
@@ -368,23 +368,39 @@ impl Checker {
         PendingCheck { read: submit_and_read(ctx, encoder, &reads), with_impulses }
     }
 
-    /// Waits for a submitted check: its estimate, and the impulses if they came back.
+    /// Waits for a submitted check: its estimate (NaN for a diverged iterate), and the impulses if
+    /// they came back.
     fn finish(&self, ctx: &GpuContext, check: PendingCheck) -> Result<(f64, Option<F32Impulses>), GpuError> {
         let mut parts = check.read.wait(ctx).map_err(GpuError::Runtime)?.into_iter();
         let floats = |bytes: Vec<u8>| bytemuck::pod_collect_to_vec::<u8, f32>(&bytes);
         let s = floats(parts.next().unwrap_or_default());
-        let worst = self.velocity.as_ref().map(|_| floats(parts.next().unwrap_or_default()));
         let impulses = check.with_impulses.then(|| bytemuck::pod_collect_to_vec(&parts.next().unwrap_or_default()));
-        let (f, r, u) = ((s[0] as f64).sqrt(), (s[1] as f64).sqrt(), (s[2] as f64).sqrt());
-        let scale = self.q_norm.max(r).max(u - self.gap_norm);
-        let natural = if scale > f64::EPSILON { f / scale } else { f };
-        let (Some(v), Some(worst)) = (&self.velocity, worst) else { return Ok((natural, impulses)) };
-        // The sums carry a NaN that a maximum may drop: a diverged iterate shows there.
-        if !natural.is_finite() {
-            return Ok((natural, impulses));
-        }
-        let worst = worst.iter().fold(0.0f64, |m, &x| m.max(x as f64));
-        Ok((if v.scale > f64::EPSILON { worst / v.scale } else { worst }, impulses))
+        let estimate = match &self.estimate {
+            Estimate::Natural { q_norm, gap_norm, .. } => {
+                let (f, r, u) = ((s[0] as f64).sqrt(), (s[1] as f64).sqrt(), (s[2] as f64).sqrt());
+                let scale = q_norm.max(r).max(u - gap_norm);
+                if scale > f64::EPSILON {
+                    f / scale
+                } else {
+                    f
+                }
+            }
+            Estimate::Velocity { scale, .. } => {
+                // (largest residual, finiteness witness) per chunk of contacts.
+                let pairs = s.chunks_exact(2);
+                if pairs.clone().any(|pair| !pair[1].is_finite()) {
+                    f64::NAN
+                } else {
+                    let worst = pairs.fold(0.0f64, |m, pair| m.max(pair[0] as f64));
+                    if *scale > f64::EPSILON {
+                        worst / scale
+                    } else {
+                        worst
+                    }
+                }
+            }
+        };
+        Ok((estimate, impulses))
     }
 
     /// The impulses of the last submitted check, read back (waits for all queued work).
