@@ -483,6 +483,67 @@ file = "packing.csv"
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A packing handed over in no spatial order (here a shuffled lattice) is numbered in rows across
+/// it: its contacts then fall into bands, which threads and the GPU's block sweeps need. With
+/// `order = "file"` the file's order is kept, and every block would touch every other. (A file
+/// whose grains already lie together keeps its order: `saved_grains_start_a_scene_where_the_run_left_them`.)
+#[test]
+fn a_shuffled_packing_from_a_file_is_numbered_in_rows_unless_asked_not_to() {
+    let dir = std::env::temp_dir().join(format!("moreau_shuffled_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // 100 × 30 disks of radius 0.05 touching on a square lattice, shuffled.
+    let mut rows: Vec<String> = (0..30)
+        .flat_map(|i| {
+            (0..100).map(move |j| format!("{},{},0.05,{}\n", 0.05 + 0.1 * j as f64, 0.05 + 0.1 * i as f64, 100 * i + j))
+        })
+        .collect();
+    rows.shuffle(&mut SmallRng::seed_from_u64(3));
+    std::fs::write(dir.join("packing.csv"), ["x,y,r,tag\n".to_string()].into_iter().chain(rows).collect::<String>())
+        .unwrap();
+    let problem_of = |order: &str| {
+        let toml = format!(
+            r#"
+name = "shuffled"
+effects = ["gravity", "friction", "rotation"]
+[time]
+step = 1e-3
+steps = 1
+[solver]
+max_iter = 20
+[[material]]
+name = "glass"
+density = 2500.0
+[[wall]]
+container = {{ min = [0.0, 0.0], max = [10.0, 4.0] }}
+[[grains]]
+file = "packing.csv"
+{order}
+"#
+        );
+        let s = moreau::scene::parse(&toml, &dir.join("scene.toml")).map_err(|e| e.to_string())?;
+        let tags = s.world.bodies.tag.clone();
+        let mut sim = Simulation::new(s.world, s.settings).unwrap();
+        sim.keep_problems(true);
+        assert!(sim.step().unwrap().error.is_finite());
+        Ok::<_, String>((tags, sim.last_problem().expect("contacts").clone()))
+    };
+    for (order, in_rows) in
+        [("", true), (r#"order = "auto""#, true), (r#"order = "space""#, true), (r#"order = "file""#, false)]
+    {
+        let (tags, p) = problem_of(order).unwrap();
+        let moreau::problem::Delassus::MatrixFree(op) = &p.w else { panic!("a step's problem is matrix-free") };
+        assert!(p.n_contacts() > 5_000, "{}", p.n_contacts());
+        let blocks = moreau::solvers::nlgs::block_colours(op, p.n_contacts());
+        assert_eq!(blocks.is_some(), in_rows, "{order:?}: blocks in bands");
+        // In rows, the lattice's own row-major numbering (its tags) comes back.
+        let row_major = tags.iter().enumerate().all(|(k, &t)| t as usize == k);
+        assert_eq!(row_major, in_rows, "{order:?}: the bodies' tags in order: {:?}", &tags[..5]);
+    }
+    let e = problem_of(r#"order = "random""#).unwrap_err();
+    assert!(e.contains("grains[0].order") && e.contains("\"random\""), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn the_cpu_colouring_is_proper_on_matrix_free_and_explicit_operators() {
     let p = scene_problem("scenes/pile.toml", 20);

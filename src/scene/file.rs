@@ -80,6 +80,9 @@ struct SceneFile {
 struct GrainsFileSpec {
     file: String,
     material: Option<String>,
+    /// "auto" (default): the file's order when it keeps grains together, else "space"; "space":
+    /// the grains numbered in rows across the packing; "file": in the file's order.
+    order: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -750,7 +753,22 @@ impl Builder<'_> {
             let path = self.cx.origin.parent().unwrap_or(Path::new(".")).join(&spec.file);
             let rows = grains_csv::read_grains(&path, MAX_GENERATED, &world.materials.names)
                 .or_else(|m| self.cx.err(g.span(), field("file"), m))?;
-            for (n, row) in rows.iter().enumerate() {
+            let order = match spec.order.as_deref() {
+                None | Some("auto") if grains_csv::lies_in_space(&rows) => (0..rows.len()).collect(),
+                None | Some("auto" | "space") => grains_csv::space_order(&rows),
+                Some("file") => (0..rows.len()).collect(),
+                Some(other) => {
+                    return self.cx.err(
+                        g.span(),
+                        field("order"),
+                        format!(
+                            "unknown order {other:?} (auto: the file's when its grains lie together, else in rows; \
+                             space: in rows across the packing; file: as in the file)"
+                        ),
+                    )
+                }
+            };
+            for (n, row) in order.into_iter().map(|n| (n, &rows[n])) {
                 // A file's material column names each grain's; [[grains]] material the rest.
                 let material = row.material.unwrap_or(material);
                 let density = world.materials.density[material];

@@ -126,6 +126,44 @@ pub fn parse_grains(text: &str, max_rows: usize, materials: &[String]) -> Result
     Ok(grains)
 }
 
+/// Whether the file's order already keeps grains together: cut into 16 runs of consecutive
+/// grains, the runs' bounding boxes cover a quarter of the packing's on average or less (bands, or
+/// columns, as a deposition or moreau's own `--save-grains` leaves them; a shuffled file's runs
+/// each span the whole packing).
+pub fn lies_in_space(rows: &[GrainRow]) -> bool {
+    let area = |g: &[GrainRow]| {
+        let (lo, hi) = g.iter().fold((DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)), |(lo, hi), g| {
+            (lo.min(g.center - g.radius), hi.max(g.center + g.radius))
+        });
+        (hi - lo).x * (hi - lo).y
+    };
+    let runs = rows.chunks(rows.len().div_ceil(16).max(1));
+    let mean = runs.clone().map(area).sum::<f64>() / runs.len() as f64;
+    mean <= 0.25 * area(rows)
+}
+
+/// The order in which to number the grains in space: rows one largest diameter high across the
+/// packing's longer side (centred on its lowest grain's, so that a lattice's rows are its own),
+/// each row along it. The solvers cut the contacts, numbered by their
+/// bodies, into blocks for threads and for the GPU's block sweeps: a block must be a region of
+/// the packing, which a file in no spatial order (a shuffled packing) would not give. Ties keep
+/// the file's order.
+pub fn space_order(rows: &[GrainRow]) -> Vec<usize> {
+    let (lo, hi) = rows.iter().fold((DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)), |(lo, hi), g| {
+        (lo.min(g.center), hi.max(g.center))
+    });
+    let span = hi - lo;
+    let height = 2.0 * rows.iter().fold(0.0f64, |m, g| m.max(g.radius));
+    // (across the rows, along them): rows stack along the shorter side.
+    let axes = |c: DVec2| if span.x >= span.y { (c.y - lo.y, c.x) } else { (c.x - lo.x, c.y) };
+    let mut order: Vec<usize> = (0..rows.len()).collect();
+    order.sort_by(|&a, &b| {
+        let ((ra, la), (rb, lb)) = (axes(rows[a].center), axes(rows[b].center));
+        (ra / height).round().total_cmp(&(rb / height).round()).then(la.total_cmp(&lb))
+    });
+    order
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -136,6 +174,51 @@ mod tests {
         assert_eq!(g.len(), 2);
         assert_eq!(g[0].center, DVec2::new(1.0, 2.0));
         assert_eq!((g[0].radius, g[0].velocity.x, g[0].spin), (0.5, -3.0, 0.0));
+    }
+
+    #[test]
+    fn grains_are_numbered_in_rows_across_the_longer_side() {
+        let row = |x: f64, y: f64| format!("{x},{y},0.5\n");
+        // A wide packing (rows stack along y), given in no order: two rows of three.
+        let text = [
+            "x,y,r\n".to_string(),
+            row(2.0, 1.0),
+            row(0.0, 0.0),
+            row(1.0, 1.2),
+            row(2.0, 0.1),
+            row(0.0, 1.1),
+            row(1.0, 0.0),
+        ]
+        .concat();
+        let g = parse_grains(&text, 10, &[]).unwrap();
+        assert_eq!(space_order(&g), vec![1, 5, 3, 4, 2, 0]);
+        // A tall one (rows stack along x): each column bottom to top.
+        let tall: Vec<GrainRow> =
+            g.iter().map(|r| GrainRow { center: DVec2::new(r.center.y, 3.0 * r.center.x), ..r.clone() }).collect();
+        assert_eq!(space_order(&tall), vec![1, 5, 3, 4, 2, 0]);
+    }
+
+    #[test]
+    fn a_file_in_rows_or_columns_lies_in_space_and_a_shuffled_one_does_not() {
+        let lattice = |column_major: bool| -> Vec<GrainRow> {
+            (0..40 * 20)
+                .map(|k| {
+                    let (i, j) = if column_major { (k % 20, k / 20) } else { (k / 40, k % 40) };
+                    let row = format!("x,y,r\n{},{},0.5\n", j as f64, i as f64);
+                    parse_grains(&row, 1, &[]).unwrap().remove(0)
+                })
+                .collect()
+        };
+        assert!(lies_in_space(&lattice(false)) && lies_in_space(&lattice(true)));
+        let mut shuffled = lattice(false);
+        let n = shuffled.len();
+        for k in 0..n {
+            shuffled.swap(k, (k * 7919 + 13) % n);
+        }
+        assert!(!lies_in_space(&shuffled));
+        // Numbered in rows, it lies in space again.
+        let ordered: Vec<GrainRow> = space_order(&shuffled).into_iter().map(|k| shuffled[k].clone()).collect();
+        assert!(lies_in_space(&ordered));
     }
 
     #[test]
