@@ -66,6 +66,7 @@ class World:
         fixed: bool = False,
         tag: int = 0,
     ) -> int: ...
+    def add_grains(self, path: _Path, material: str, order: str = "auto") -> List[int]: ...
     def add_polygon(
         self,
         center: _Vec,

@@ -307,6 +307,25 @@ impl World {
         self.add(&spec)
     }
 
+    /// Adds the disks of a grains CSV file (the columns of `[[grains]]`: x, y, r and optionally vx,
+    /// vy, spin, tag, material), each of `material` unless its row names one; `order` as a scene's
+    /// `[[grains]] order` (auto, space, file). Returns each row's body index, in the file's order.
+    #[pyo3(signature = (path, material, order = "auto"))]
+    fn add_grains(&mut self, path: PathBuf, material: &str, order: &str) -> PyResult<Vec<usize>> {
+        use moreau::scene::grains_csv::{read_grains, GrainOrder};
+        let material = material_named(&self.0, material)?;
+        let order = GrainOrder::from_name(order).map_err(error)?;
+        let rows = read_grains(&path, moreau::scene::file::MAX_GENERATED, &self.0.materials.names).map_err(error)?;
+        let mut body_of = vec![0; rows.len()];
+        for n in order.numbering(&rows) {
+            let row = &rows[n];
+            let mut spec = BodySpec::disk(row.center, row.radius, row.material.unwrap_or(material));
+            (spec.velocity, spec.spin, spec.tag) = (row.velocity, row.spin, row.tag);
+            body_of[n] = self.add(&spec).map_err(|e| error(format!("{}: grain {}: {e}", path.display(), n + 1)))?;
+        }
+        Ok(body_of)
+    }
+
     /// Adds a wall segment from `a` to `b` (moving at `velocity` with the effect moving_walls).
     #[pyo3(signature = (a, b, material, velocity = (0.0, 0.0)))]
     fn add_wall(&mut self, a: (f64, f64), b: (f64, f64), material: &str, velocity: (f64, f64)) -> PyResult<usize> {

@@ -308,6 +308,33 @@ def test_a_world_built_from_python_lets_a_grain_land_and_rest():
     assert focused.error <= 1e-10 and any(n.startswith("focused sweeps: ") for n in focused.notes), focused.notes
 
 
+def test_a_shuffled_packing_read_from_python_is_numbered_in_rows_and_each_row_finds_its_body(tmp_path):
+    # 40 x 10 disks touching on a square lattice, written shuffled.
+    rows = [(0.05 + 0.1 * j, 0.05 + 0.1 * i) for i in range(10) for j in range(40)]
+    shuffled = np.random.default_rng(4).permutation(len(rows))
+    path = tmp_path / "packing.csv"
+    path.write_text("x,y,r,tag\n" + "".join(f"{rows[k][0]!r},{rows[k][1]!r},0.05,{k}\n" for k in shuffled))
+    for order in ["auto", "space", "file"]:
+        world = moreau.World([("glass", 2500.0)], friction=0.3, gravity=(0.0, -9.81))
+        world.add_wall((0.0, 0.0), (4.0, 0.0), "glass")
+        body_of = world.add_grains(path, "glass", order=order)
+        assert sorted(body_of) == list(range(len(rows))) and world.body_count == len(rows)
+        sim = moreau.Simulation(world, h=1e-3)
+        # Row n of the file is the body the call says.
+        np.testing.assert_array_equal(sim.positions[body_of], np.array([rows[k] for k in shuffled]))
+        if order == "file":
+            assert body_of == list(range(len(rows)))
+        else:
+            # In rows: body k is the lattice's k-th grain, row-major.
+            np.testing.assert_array_equal(sim.positions, np.array(rows))
+    with pytest.raises(moreau.MoreauError, match='unknown order "random"'):
+        world.add_grains(path, "glass", order="random")
+    bad = tmp_path / "bad.csv"
+    bad.write_text("x,y,r\n0,0,1\n1,zz,1\n")
+    with pytest.raises(moreau.MoreauError, match=r"line 3, column 2 \(y\)"):
+        world.add_grains(bad, "glass")
+
+
 def test_a_projection_slack_of_zero_from_python_stops_a_loosely_solved_stack_sinking():
     def deepest(**slack):
         world = moreau.World([("g", 1.0)], friction=0.5, gravity=(0.0, -9.81))

@@ -40,7 +40,8 @@ impl<'de, T: Deserialize<'de>, const N: usize> Deserialize<'de> for Exact<T, N> 
 
 /// Bounds on what a scene file may ask a generator for, so that no file can make the parser run
 /// out of memory or time.
-const MAX_GENERATED: usize = 5_000_000;
+/// The most grains a generator or a grains file may make.
+pub const MAX_GENERATED: usize = 5_000_000;
 const MAX_PYRAMID_BASE: usize = 3_000;
 const MAX_DRUM_SIDES: usize = 100_000;
 const MAX_POLYGON_SIDES: usize = 1_000;
@@ -753,21 +754,9 @@ impl Builder<'_> {
             let path = self.cx.origin.parent().unwrap_or(Path::new(".")).join(&spec.file);
             let rows = grains_csv::read_grains(&path, MAX_GENERATED, &world.materials.names)
                 .or_else(|m| self.cx.err(g.span(), field("file"), m))?;
-            let order = match spec.order.as_deref() {
-                None | Some("auto") if grains_csv::lies_in_space(&rows) => (0..rows.len()).collect(),
-                None | Some("auto" | "space") => grains_csv::space_order(&rows),
-                Some("file") => (0..rows.len()).collect(),
-                Some(other) => {
-                    return self.cx.err(
-                        g.span(),
-                        field("order"),
-                        format!(
-                            "unknown order {other:?} (auto: the file's when its grains lie together, else in rows; \
-                             space: in rows across the packing; file: as in the file)"
-                        ),
-                    )
-                }
-            };
+            let order = grains_csv::GrainOrder::from_name(spec.order.as_deref().unwrap_or("auto"))
+                .or_else(|m| self.cx.err(g.span(), field("order"), m))?;
+            let order = order.numbering(&rows);
             for (n, row) in order.into_iter().map(|n| (n, &rows[n])) {
                 // A file's material column names each grain's; [[grains]] material the rest.
                 let material = row.material.unwrap_or(material);

@@ -126,6 +126,42 @@ pub fn parse_grains(text: &str, max_rows: usize, materials: &[String]) -> Result
     Ok(grains)
 }
 
+/// How a file's grains are numbered as bodies (`[[grains]] order`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GrainOrder {
+    /// The file's order when its grains lie together ([`lies_in_space`]), else [`GrainOrder::Space`].
+    #[default]
+    Auto,
+    /// In rows across the packing ([`space_order`]).
+    Space,
+    /// The file's order.
+    File,
+}
+
+impl GrainOrder {
+    /// The order named `name` (auto, space, file).
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        match name {
+            "auto" => Ok(Self::Auto),
+            "space" => Ok(Self::Space),
+            "file" => Ok(Self::File),
+            other => Err(format!(
+                "unknown order {other:?} (auto: the file's when its grains lie together, else in rows; space: in \
+                 rows across the packing; file: as in the file)"
+            )),
+        }
+    }
+
+    /// The file's rows in the order the bodies take them.
+    pub fn numbering(self, rows: &[GrainRow]) -> Vec<usize> {
+        match self {
+            Self::Auto if lies_in_space(rows) => (0..rows.len()).collect(),
+            Self::Auto | Self::Space => space_order(rows),
+            Self::File => (0..rows.len()).collect(),
+        }
+    }
+}
+
 /// Whether the file's order already keeps grains together: cut into 16 runs of consecutive
 /// grains, the runs' bounding boxes cover a quarter of the packing's on average or less (bands, or
 /// columns, as a deposition or moreau's own `--save-grains` leaves them; a shuffled file's runs
