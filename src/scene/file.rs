@@ -39,8 +39,7 @@ impl<'de, T: Deserialize<'de>, const N: usize> Deserialize<'de> for Exact<T, N> 
 }
 
 /// Bounds on what a scene file may ask a generator for, so that no file can make the parser run
-/// out of memory or time.
-/// The most grains a generator or a grains file may make.
+/// out of memory or time: this one, the most grains a generator or a grains file may make.
 pub const MAX_GENERATED: usize = 5_000_000;
 const MAX_PYRAMID_BASE: usize = 3_000;
 const MAX_DRUM_SIDES: usize = 100_000;

@@ -180,10 +180,9 @@ pub fn lies_in_space(rows: &[GrainRow]) -> bool {
 
 /// The order in which to number the grains in space: rows one largest diameter high across the
 /// packing's longer side (centred on its lowest grain's, so that a lattice's rows are its own),
-/// each row along it. The solvers cut the contacts, numbered by their
-/// bodies, into blocks for threads and for the GPU's block sweeps: a block must be a region of
-/// the packing, which a file in no spatial order (a shuffled packing) would not give. Ties keep
-/// the file's order.
+/// each row along it. The solvers cut the contacts, numbered by their bodies, into blocks for
+/// threads and for the GPU's block sweeps: a block must be a region of the packing, which a file
+/// in no spatial order (a shuffled packing) would not give. Ties keep the file's order.
 pub fn space_order(rows: &[GrainRow]) -> Vec<usize> {
     let (lo, hi) = rows.iter().fold((DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)), |(lo, hi), g| {
         (lo.min(g.center), hi.max(g.center))
