@@ -9,14 +9,7 @@
 #import range
 #import nlgs_update
 
-@group(0) @binding(0) var<storage, read> contacts: array<Contact>;
-@group(0) @binding(1) var<storage, read> inv_mass: array<vec2<f32>>;
-@group(0) @binding(2) var<storage, read> diag: array<vec4<f32>>;
-@group(0) @binding(3) var<storage, read> q: array<vec2<f32>>;
-@group(0) @binding(4) var<storage, read> mu: array<f32>;
-@group(0) @binding(5) var<storage, read> order: array<u32>;
-@group(0) @binding(6) var<storage, read_write> r: array<vec2<f32>>;
-@group(0) @binding(7) var<storage, read_write> v: array<vec4<f32>>;
+// Bindings 0–7: nlgs_update's.
 @group(0) @binding(8) var<uniform> range: Range;
 
 @compute @workgroup_size(64)

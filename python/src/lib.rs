@@ -318,10 +318,9 @@ impl World {
         let rows = read_grains(&path, moreau::scene::file::MAX_GENERATED, &self.0.materials.names).map_err(error)?;
         let mut body_of = vec![0; rows.len()];
         for n in order.numbering(&rows) {
-            let row = &rows[n];
-            let mut spec = BodySpec::disk(row.center, row.radius, row.material.unwrap_or(material));
-            (spec.velocity, spec.spin, spec.tag) = (row.velocity, row.spin, row.tag);
-            body_of[n] = self.add(&spec).map_err(|e| error(format!("{}: grain {}: {e}", path.display(), n + 1)))?;
+            body_of[n] = self
+                .add(&rows[n].body(material))
+                .map_err(|e| error(format!("{}: grain {}: {e}", path.display(), n + 1)))?;
         }
         Ok(body_of)
     }

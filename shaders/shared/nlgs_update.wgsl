@@ -1,10 +1,20 @@
 // One contact's NLGS update on the matrix-free operator: its velocity from the body velocities
-// v = M⁻¹ Bᵀ r, the single-contact solve, and the impulse change scattered into v. The kernel
-// that imports it declares the bindings it reads by these names: contacts, inv_mass, diag, q,
-// mu, r, v. The caller guarantees that no other invocation touches the contact's moving bodies
-// meanwhile. With a threshold (the work list's sweeps), a contact whose residual in velocity
-// units is within it is left alone: converged contacts do not drift.
+// v = M⁻¹ Bᵀ r, the single-contact solve, and the impulse change scattered into v. It declares
+// the bindings every matrix-free NLGS kernel reads (0–7, the contacts' colour order among them);
+// a kernel that imports it numbers its own from 8. The caller guarantees that no other invocation
+// touches the contact's moving bodies meanwhile. With a threshold (the work list's sweeps), a
+// contact whose residual in velocity units is within it is left alone: converged contacts do not
+// drift.
 // CPU mirror: src/gpu/cpu/nlgs_colour.rs
+
+@group(0) @binding(0) var<storage, read> contacts: array<Contact>;
+@group(0) @binding(1) var<storage, read> inv_mass: array<vec2<f32>>;
+@group(0) @binding(2) var<storage, read> diag: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> q: array<vec2<f32>>;
+@group(0) @binding(4) var<storage, read> mu: array<f32>;
+@group(0) @binding(5) var<storage, read> order: array<u32>;
+@group(0) @binding(6) var<storage, read_write> r: array<vec2<f32>>;
+@group(0) @binding(7) var<storage, read_write> v: array<vec4<f32>>;
 
 fn scatter(k: u32, s: f32, f: vec2<f32>, torque: f32) {
     let im = inv_mass[k];

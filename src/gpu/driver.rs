@@ -375,31 +375,19 @@ impl Checker {
         let floats = |bytes: Vec<u8>| bytemuck::pod_collect_to_vec::<u8, f32>(&bytes);
         let s = floats(parts.next().unwrap_or_default());
         let impulses = check.with_impulses.then(|| bytemuck::pod_collect_to_vec(&parts.next().unwrap_or_default()));
-        let estimate = match &self.estimate {
+        // The measure over its scale.
+        let (measure, scale) = match &self.estimate {
             Estimate::Natural { q_norm, gap_norm, .. } => {
                 let (f, r, u) = ((s[0] as f64).sqrt(), (s[1] as f64).sqrt(), (s[2] as f64).sqrt());
-                let scale = q_norm.max(r).max(u - gap_norm);
-                if scale > f64::EPSILON {
-                    f / scale
-                } else {
-                    f
-                }
+                (f, q_norm.max(r).max(u - gap_norm))
             }
-            Estimate::Velocity { scale, .. } => {
-                // (largest residual, finiteness witness) per chunk of contacts.
-                let pairs = s.chunks_exact(2);
-                if pairs.clone().any(|pair| !pair[1].is_finite()) {
-                    f64::NAN
-                } else {
-                    let worst = pairs.fold(0.0f64, |m, pair| m.max(pair[0] as f64));
-                    if *scale > f64::EPSILON {
-                        worst / scale
-                    } else {
-                        worst
-                    }
-                }
-            }
+            // (largest residual, finiteness witness) per chunk of contacts.
+            Estimate::Velocity { scale, .. } => match s.chunks_exact(2).all(|pair| pair[1].is_finite()) {
+                true => (s.chunks_exact(2).fold(0.0f64, |m, pair| m.max(pair[0] as f64)), *scale),
+                false => (f64::NAN, *scale),
+            },
         };
+        let estimate = if scale > f64::EPSILON { measure / scale } else { measure };
         Ok((estimate, impulses))
     }
 

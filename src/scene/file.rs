@@ -758,11 +758,8 @@ impl Builder<'_> {
             let order = order.numbering(&rows);
             for (n, row) in order.into_iter().map(|n| (n, &rows[n])) {
                 // A file's material column names each grain's; [[grains]] material the rest.
-                let material = row.material.unwrap_or(material);
-                let density = world.materials.density[material];
-                let mut body = BodySpec::disk(row.center, row.radius, material);
-                (body.velocity, body.spin, body.tag) = (row.velocity, row.spin, row.tag);
-                world.bodies.add(&body, density).or_else(|m| {
+                let body = row.body(material);
+                world.bodies.add(&body, world.materials.density[body.material]).or_else(|m| {
                     self.cx.err(g.span(), field("file"), format!("{}: grain {}: {m}", path.display(), n + 1))
                 })?;
                 self.smallest_radius = self.smallest_radius.min(row.radius);

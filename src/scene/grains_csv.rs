@@ -6,6 +6,8 @@ use std::path::Path;
 
 use glam::DVec2;
 
+use crate::world::BodySpec;
+
 /// One grain of the file.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GrainRow {
@@ -21,6 +23,15 @@ pub struct GrainRow {
     pub tag: u32,
     /// Index of the material the row names among the scene's (None when the column is absent).
     pub material: Option<usize>,
+}
+
+impl GrainRow {
+    /// The row's disk as a body: of its own material if it names one, else of `material`.
+    pub fn body(&self, material: usize) -> BodySpec {
+        let mut spec = BodySpec::disk(self.center, self.radius, self.material.unwrap_or(material));
+        (spec.velocity, spec.spin, spec.tag) = (self.velocity, self.spin, self.tag);
+        spec
+    }
 }
 
 /// The columns a grains file may have, in the order `io::grains` writes them.
@@ -168,14 +179,19 @@ impl GrainOrder {
 /// each span the whole packing).
 pub fn lies_in_space(rows: &[GrainRow]) -> bool {
     let area = |g: &[GrainRow]| {
-        let (lo, hi) = g.iter().fold((DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)), |(lo, hi), g| {
-            (lo.min(g.center - g.radius), hi.max(g.center + g.radius))
-        });
+        let (lo, hi) = bounds(g, |g| g.radius);
         (hi - lo).x * (hi - lo).y
     };
     let runs = rows.chunks(rows.len().div_ceil(16).max(1));
     let mean = runs.clone().map(area).sum::<f64>() / runs.len() as f64;
     mean <= 0.25 * area(rows)
+}
+
+/// The corners of the box holding the grains' centres, each widened by `margin` of it.
+fn bounds(rows: &[GrainRow], margin: impl Fn(&GrainRow) -> f64) -> (DVec2, DVec2) {
+    rows.iter().fold((DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)), |(lo, hi), g| {
+        (lo.min(g.center - margin(g)), hi.max(g.center + margin(g)))
+    })
 }
 
 /// The order in which to number the grains in space: rows one largest diameter high across the
@@ -184,9 +200,7 @@ pub fn lies_in_space(rows: &[GrainRow]) -> bool {
 /// threads and for the GPU's block sweeps: a block must be a region of the packing, which a file
 /// in no spatial order (a shuffled packing) would not give. Ties keep the file's order.
 pub fn space_order(rows: &[GrainRow]) -> Vec<usize> {
-    let (lo, hi) = rows.iter().fold((DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)), |(lo, hi), g| {
-        (lo.min(g.center), hi.max(g.center))
-    });
+    let (lo, hi) = bounds(rows, |_| 0.0);
     let span = hi - lo;
     let height = 2.0 * rows.iter().fold(0.0f64, |m, g| m.max(g.radius));
     // (across the rows, along them): rows stack along the shorter side.
