@@ -3,6 +3,8 @@
 # target/, then runs its tests, which compare it with the `moreau` binary of `cargo build --release`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# The software adapter on the calling thread, as for cargo's processes (.cargo/config.toml).
+export LP_NUM_THREADS="${LP_NUM_THREADS:-0}"
 venv=target/python-venv
 [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
 [ -x target/release/moreau ] || cargo build --release --bin moreau

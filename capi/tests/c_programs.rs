@@ -23,11 +23,13 @@ fn library_dir() -> PathBuf {
             let exe = std::env::current_exe().unwrap();
             let dir = exe.parent().and_then(Path::parent).unwrap().to_path_buf();
             // Built every time (a no-op when fresh): a library left by an older build would
-            // compare the C programs with another version of the library.
+            // compare the C programs with another version of the library. The packages and
+            // targets are README's test command's, so their dependencies' features are the ones
+            // this test was built with: `-p moreau-capi` alone would build them all again.
             let profile = dir.file_name().unwrap().to_str().unwrap();
             let profile = if profile == "debug" { "dev" } else { profile };
             let status = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
-                .args(["build", "--lib", "-p", "moreau-capi", "--profile", profile])
+                .args(["build", "--workspace", "--exclude", "moreau-python", "--lib", "--tests", "--profile", profile])
                 .current_dir(repo())
                 .status()
                 .expect("cargo runs");
