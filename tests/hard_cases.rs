@@ -56,18 +56,21 @@ fn header(effects: &str, h: f64, steps: usize, solver: &str, tol: f64, mu: f64) 
     )
 }
 
-/// The GPU variants: fewer steps (lavapipe is slow) and tol 1e-5, above the f32 floor of these
-/// problems (at 1e-6 the GPU stalls, reports it, and spends its iterations doing so).
-fn gpu_budget(on_gpu: bool) -> (usize, f64) {
+/// Steps of the scenes below, on either device.
+const STEPS: usize = 300;
+
+/// The GPU variants' tol, 1e-5, is above the f32 floor of these problems (at 1e-6 the GPU stalls,
+/// reports it, and spends its iterations doing so).
+fn tolerance(on_gpu: bool) -> f64 {
     if on_gpu {
-        (100, 1e-5)
+        1e-5
     } else {
-        (300, 1e-6)
+        1e-6
     }
 }
 
 fn column(n: usize, top_density: f64, solver: &str, on_gpu: bool) -> String {
-    let (steps, tol) = gpu_budget(on_gpu);
+    let (steps, tol) = (STEPS, tolerance(on_gpu));
     let mut s = header(r#""gravity", "friction", "rotation""#, 1e-3, steps, solver, tol, 0.5);
     s.push_str(&format!(
         "[[material]]\nname = \"light\"\ndensity = 1.0\n[[material]]\nname = \"heavy\"\ndensity = {top_density}\n[[wall]]\nsegment = [[-1.0, 0.0], [1.0, 0.0]]\n"
@@ -98,7 +101,7 @@ fn heavy_grains_on_light_columns_mass_ratio_100_and_1000() {
 #[test]
 fn heavy_box_on_two_small_boxes_stays_level() {
     for ctx in [None, common::gpu_context()] {
-        let (steps, tol) = gpu_budget(ctx.is_some());
+        let (steps, tol) = (STEPS, tolerance(ctx.is_some()));
         // Mass ratio 400: a 4×4 box of density 25 on two unit boxes.
         let mut s = header(r#""gravity", "friction", "rotation""#, 1e-2, steps, "nlgs", tol, 0.6);
         s.push_str("[[material]]\nname = \"small\"\ndensity = 1.0\n[[material]]\nname = \"big\"\ndensity = 25.0\n[[wall]]\nsegment = [[-10.0, 0.0], [10.0, 0.0]]\n");
@@ -139,7 +142,7 @@ fn a_box_pyramid_keeps_its_height_and_its_symmetry() {
     for ctx in [None, common::gpu_context()] {
         let on_gpu = ctx.is_some();
         // The GPU's colour order and f32 keep symmetry to 1e-4 only.
-        let (steps, tol, mirror) = if on_gpu { (100, 1e-5, 1e-4) } else { (200, 1e-7, 1e-6) };
+        let (steps, tol, mirror) = if on_gpu { (200, 1e-5, 1e-4) } else { (200, 1e-7, 1e-6) };
         let mut s = header(r#""gravity", "friction", "rotation""#, 1e-2, steps, "nlgs", tol, 0.6);
         s.push_str("[[material]]\nname = \"box\"\ndensity = 1.0\n[[wall]]\nsegment = [[-5.0, 0.0], [15.0, 0.0]]\n[[generate]]\nkind = \"pyramid\"\nbase = 10\nradius = [0.5, 0.5]\nregion = { min = [0.0, 0.0], max = [10.0, 10.0] }\n");
         let o = run("pyramid", &s, ctx);
@@ -215,10 +218,9 @@ fn settle_a_pile_without_penetrating(mu: f64, on_gpu: bool) {
         (true, None) => return,
         (_, ctx) => ctx,
     };
-    // The GPU's sweeps are capped at 4,000 a step (lavapipe is slow): about 15 steps of the
-    // fall reach neither 1e-5 nor their floor within 20,000 sweeps on either device, and say so.
+    // About 15 steps of the fall reach neither 1e-5 nor their floor within 20,000 sweeps on
+    // either device, and say so.
     let scene = pile(mu, (0.002, 0.003), 0.0002, 1e-5, 120);
-    let scene = if on_gpu { scene.replace("max_iter = 20000", "max_iter = 4000") } else { scene };
     let o = run(&format!("pile mu={mu}"), &scene, ctx);
     let d = o.sim.world.mean_diameter();
     assert!(o.max_penetration() < 1e-3 * d, "μ = {mu}: penetration {:.2e} d", o.max_penetration() / d);
@@ -246,7 +248,7 @@ fn polydispersity_one_to_ten() {
 fn grains_created_overlapping_do_not_explode() {
     // 25 % overlap: centres 1.5 radii apart. Velocity-level Signorini adds no push-out energy.
     for ctx in [None, common::gpu_context()] {
-        let (steps, tol) = gpu_budget(ctx.is_some());
+        let (steps, tol) = (STEPS, tolerance(ctx.is_some()));
         let mut s = header(r#""friction", "rotation""#, 1e-3, steps, "nlgs", tol, 0.3);
         s.push_str("[[material]]\nname = \"g\"\ndensity = 1.0\n");
         for i in 0..25 {
@@ -269,7 +271,7 @@ fn grains_created_overlapping_do_not_explode() {
 fn a_fast_impact_does_not_tunnel() {
     // A disk of diameter 2 cm at 50 m/s: 2.5 diameters per step.
     for ctx in [None, common::gpu_context()] {
-        let tol = gpu_budget(ctx.is_some()).1;
+        let tol = tolerance(ctx.is_some());
         let mut s = header(r#""gravity", "friction""#, 1e-3, 100, "nlgs", tol, 0.3);
         s.push_str("[[material]]\nname = \"g\"\ndensity = 1.0\n[[wall]]\nsegment = [[-1.0, 0.0], [1.0, 0.0]]\n[[body]]\ndisk = { center = [0.0, 0.5], radius = 0.01 }\nvelocity = [0.0, -50.0]\n");
         let o = run("fast impact", &s, ctx);
@@ -298,7 +300,7 @@ fn a_scene_far_from_the_origin_behaves_as_at_the_origin() {
     };
     for ctx in [None, common::gpu_context()] {
         let on_gpu = ctx.is_some();
-        let tol = gpu_budget(on_gpu).1;
+        let tol = tolerance(on_gpu);
         let here = run("origin", &shifted(0.0, 0.0, tol), None);
         let far = run("far", &shifted(1e5, -8e4, tol), ctx);
         for k in 0..5 {
@@ -346,7 +348,7 @@ fn a_resting_problem_with_q_zero_stops_at_once() {
 fn a_square_lattice_of_equal_disks_redundant_contacts_stays_put() {
     // Equal disks on a square lattice, touching: four contacts per grain, W singular.
     for ctx in [None, common::gpu_context()] {
-        let (steps, tol) = gpu_budget(ctx.is_some());
+        let (steps, tol) = (STEPS, tolerance(ctx.is_some()));
         let mut s = header(r#""gravity", "friction", "rotation""#, 1e-3, steps, "nlgs", tol, 0.3);
         s.push_str("[[material]]\nname = \"g\"\ndensity = 1.0\n[[wall]]\ncontainer = { min = [0.0, 0.0], max = [1.0, 2.0] }\n[[generate]]\nkind = \"grid\"\ncount = 100\nradius = [0.05, 0.05]\nspacing = 0.0\nregion = { min = [0.0, 0.0], max = [1.0, 2.0] }\n");
         let start: Vec<DVec2> = {
@@ -366,7 +368,7 @@ fn a_semicircular_arch_of_voussoirs_stands() {
     // Nine voussoirs between radii 2 and 2.5, dry joints, μ = 0.6 (thickness / radius = 0.22,
     // above Heyman's minimum of about 0.11 for a semicircle).
     for ctx in [None, common::gpu_context()] {
-        let (steps, tol) = if ctx.is_some() { (100, 1e-5) } else { (200, 1e-7) };
+        let (steps, tol) = if ctx.is_some() { (200, 1e-5) } else { (200, 1e-7) };
         let mut s = header(r#""gravity", "friction", "rotation""#, 1e-2, steps, "nlgs", tol, 0.6);
         s.push_str("[[material]]\nname = \"stone\"\ndensity = 2.0\n[[wall]]\nsegment = [[-5.0, 0.0], [5.0, 0.0]]\n");
         let n = 9;
