@@ -492,14 +492,16 @@ fn a_shuffled_packing_from_a_file_is_numbered_in_rows_unless_asked_not_to() {
     let dir = std::env::temp_dir().join(format!("moreau_shuffled_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     // 100 × 30 disks of radius 0.05 touching on a square lattice, shuffled.
-    let mut rows: Vec<String> = (0..30)
+    let in_rows: Vec<String> = (0..30)
         .flat_map(|i| {
             (0..100).map(move |j| format!("{},{},0.05,{}\n", 0.05 + 0.1 * j as f64, 0.05 + 0.1 * i as f64, 100 * i + j))
         })
         .collect();
-    rows.shuffle(&mut SmallRng::seed_from_u64(3));
-    std::fs::write(dir.join("packing.csv"), ["x,y,r,tag\n".to_string()].into_iter().chain(rows).collect::<String>())
-        .unwrap();
+    let write =
+        |rows: &[String]| std::fs::write(dir.join("packing.csv"), format!("x,y,r,tag\n{}", rows.concat())).unwrap();
+    let mut shuffled = in_rows.clone();
+    shuffled.shuffle(&mut SmallRng::seed_from_u64(3));
+    write(&shuffled);
     let problem_of = |order: &str| {
         let toml = format!(
             r#"
@@ -521,16 +523,19 @@ file = "packing.csv"
 "#
         );
         let s = moreau::scene::parse(&toml, &dir.join("scene.toml")).map_err(|e| e.to_string())?;
-        let tags = s.world.bodies.tag.clone();
+        let (tags, notes) = (s.world.bodies.tag.clone(), s.notes.clone());
         let mut sim = Simulation::new(s.world, s.settings).unwrap();
         sim.keep_problems(true);
         assert!(sim.step().unwrap().error.is_finite());
-        Ok::<_, String>((tags, sim.last_problem().expect("contacts").clone()))
+        Ok::<_, String>((tags, notes, sim.last_problem().expect("contacts").clone()))
     };
     for (order, in_rows) in
         [("", true), (r#"order = "auto""#, true), (r#"order = "space""#, true), (r#"order = "file""#, false)]
     {
-        let (tags, p) = problem_of(order).unwrap();
+        let (tags, notes, p) = problem_of(order).unwrap();
+        // The renumbering `auto` chose is said; one asked for is not.
+        let said = notes.iter().any(|n| n.contains("3000 grains") && n.contains("numbered in rows"));
+        assert_eq!(said, order.is_empty() || order.contains("auto"), "{order:?}: {notes:?}");
         let moreau::problem::Delassus::MatrixFree(op) = &p.w else { panic!("a step's problem is matrix-free") };
         assert!(p.n_contacts() > 5_000, "{}", p.n_contacts());
         let blocks = moreau::solvers::nlgs::block_colours(op, p.n_contacts());
@@ -539,6 +544,10 @@ file = "packing.csv"
         let row_major = tags.iter().enumerate().all(|(k, &t)| t as usize == k);
         assert_eq!(row_major, in_rows, "{order:?}: the bodies' tags in order: {:?}", &tags[..5]);
     }
+    // The file in rows: `auto` keeps its order, and says nothing.
+    write(&in_rows);
+    let (tags, notes, _) = problem_of("").unwrap();
+    assert!(notes.is_empty() && tags.iter().enumerate().all(|(k, &t)| t as usize == k), "{notes:?}");
     let e = problem_of(r#"order = "random""#).unwrap_err();
     assert!(e.contains("grains[0].order") && e.contains("\"random\""), "{e}");
     std::fs::remove_dir_all(&dir).ok();

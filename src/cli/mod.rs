@@ -335,7 +335,7 @@ fn check_command(path: &std::path::Path, strict: bool) -> Result<()> {
             return Ok(());
         }
     };
-    let mut warnings = scene.warnings.clone();
+    let (mut warnings, notes) = (scene.warnings.clone(), scene.notes.clone());
     let (bodies, walls) = (scene.world.bodies.len(), scene.world.walls.len());
     let (h, steps, name) = (scene.settings.h, scene.steps, scene.name.clone());
     let alert = scene.settings.alert;
@@ -343,6 +343,9 @@ fn check_command(path: &std::path::Path, strict: bool) -> Result<()> {
     warnings.extend(sim.check().with_context(|| format!("{}", path.display()))?.iter().cloned());
     for w in &warnings {
         println!("warning: {w}");
+    }
+    for n in &notes {
+        println!("note: {n}");
     }
     println!(
         "{name}: {bodies} bodies, {walls} walls, h = {h:e}, {steps} steps, alert {alert:.3e}: {}",

@@ -108,6 +108,9 @@ pub fn run_command(a: RunArgs) -> Result<()> {
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
+    for n in &scene.notes {
+        eprintln!("note: {n}");
+    }
     let restart = a.restart.as_ref().map(|path| read_checkpoint(path, &a.scene)).transpose()?;
     let start = restart.as_ref().map_or(0, |c| c.steps_done);
     let steps = match a.steps {

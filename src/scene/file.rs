@@ -307,13 +307,20 @@ struct Builder<'a> {
     file: &'a SceneFile,
     cx: Ctx<'a>,
     warnings: Vec<String>,
+    notes: Vec<String>,
     /// The smallest grain radius (generated grains: their drawn radius), for the default alert.
     smallest_radius: f64,
 }
 
 pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
     let file: SceneFile = from_toml(text, origin)?;
-    let mut b = Builder { file: &file, cx: Ctx { text, origin }, warnings: Vec::new(), smallest_radius: f64::INFINITY };
+    let mut b = Builder {
+        file: &file,
+        cx: Ctx { text, origin },
+        warnings: Vec::new(),
+        notes: Vec::new(),
+        smallest_radius: f64::INFINITY,
+    };
     let effects = b.effects()?;
     let materials = b.materials(&effects)?;
     let mut world = World::new(effects, materials);
@@ -336,6 +343,7 @@ pub(super) fn build(text: &str, origin: &Path) -> Result<Scene, SceneError> {
         steps: file.time.get_ref().steps,
         output,
         warnings: b.warnings,
+        notes: b.notes,
     })
 }
 
@@ -753,10 +761,18 @@ impl Builder<'_> {
             let path = self.cx.origin.parent().unwrap_or(Path::new(".")).join(&spec.file);
             let rows = grains_csv::read_grains(&path, MAX_GENERATED, &world.materials.names)
                 .or_else(|m| self.cx.err(g.span(), field("file"), m))?;
-            let order = grains_csv::GrainOrder::from_name(spec.order.as_deref().unwrap_or("auto"))
+            let asked = grains_csv::GrainOrder::from_name(spec.order.as_deref().unwrap_or("auto"))
                 .or_else(|m| self.cx.err(g.span(), field("order"), m))?;
-            let order = order.numbering(&rows);
-            for (n, row) in order.into_iter().map(|n| (n, &rows[n])) {
+            let order = asked.resolved(&rows);
+            if asked != order && order == grains_csv::GrainOrder::Space {
+                self.notes.push(format!(
+                    "grains[{k}]: the {} grains of {} lie in no spatial order: numbered in rows across the packing \
+                     (order = \"file\" keeps the file's)",
+                    rows.len(),
+                    path.display()
+                ));
+            }
+            for (n, row) in order.numbering(&rows).into_iter().map(|n| (n, &rows[n])) {
                 // A file's material column names each grain's; [[grains]] material the rest.
                 let body = row.body(material);
                 world.bodies.add(&body, world.materials.density[body.material]).or_else(|m| {

@@ -163,12 +163,21 @@ impl GrainOrder {
         }
     }
 
+    /// What `Auto` comes to for these rows (`File` when they lie together, else `Space`); the
+    /// other orders as they are.
+    pub fn resolved(self, rows: &[GrainRow]) -> Self {
+        match self {
+            Self::Auto if lies_in_space(rows) => Self::File,
+            Self::Auto => Self::Space,
+            other => other,
+        }
+    }
+
     /// The file's rows in the order the bodies take them.
     pub fn numbering(self, rows: &[GrainRow]) -> Vec<usize> {
-        match self {
-            Self::Auto if lies_in_space(rows) => (0..rows.len()).collect(),
-            Self::Auto | Self::Space => space_order(rows),
-            Self::File => (0..rows.len()).collect(),
+        match self.resolved(rows) {
+            Self::Space => space_order(rows),
+            _ => (0..rows.len()).collect(),
         }
     }
 }

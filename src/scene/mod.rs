@@ -48,6 +48,9 @@ pub struct Scene {
     pub output: OutputSettings,
     /// Things that are legal but probably not what the author meant (printed by the CLI).
     pub warnings: Vec<String>,
+    /// What loading did that the file does not spell out (a grains file numbered in rows), for
+    /// the CLI to say; not warnings.
+    pub notes: Vec<String>,
 }
 
 /// A scene file refused: where and why.
