@@ -30,7 +30,8 @@ typedef enum MoreauStatus {
 // A contact problem `u = W r + q`, `μ` per contact.
 typedef struct MoreauProblem MoreauProblem;
 
-// A simulation stepped one Moreau–Jean step at a time.
+// A simulation stepped one Moreau–Jean step at a time, with the last check's warnings and its
+// scene file's notes as C strings.
 typedef struct MoreauSimulation MoreauSimulation;
 
 // A solve's result.
@@ -182,6 +183,21 @@ void moreau_solution_free(struct MoreauSolution *solution);
 
 // The simulation a scene file describes (bodies, walls, materials, effects, step settings).
 enum MoreauStatus moreau_simulation_from_scene(const char *path, struct MoreauSimulation **out);
+
+// Checks the world before the first step, as `moreau check` does (the first step checks when
+// the host has not): a start that cannot be integrated fails with its message; `count` gets the
+// number of warnings, the scene file's then the start's (grains outside the walls, in a wall,
+// on top of each other), read with `moreau_simulation_warning`.
+enum MoreauStatus moreau_simulation_check(struct MoreauSimulation *sim, size_t *count);
+
+// Warning `k` of the last `moreau_simulation_check` ("" past the last, or for NULL); lives until
+// the next check or the simulation's free.
+const char *moreau_simulation_warning(const struct MoreauSimulation *sim, size_t k);
+
+// Note `k` of the scene file the simulation was loaded from: what loading did that the file
+// does not spell out (a grains file numbered in rows), "" past the last or for NULL; lives as
+// long as the simulation.
+const char *moreau_simulation_note(const struct MoreauSimulation *sim, size_t k);
 
 // Runs the steps on `device` (`auto`, `cpu`, `gpu`) with `threads` CPU threads (0: all cores).
 enum MoreauStatus moreau_simulation_set_device(struct MoreauSimulation *sim,

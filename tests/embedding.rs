@@ -4,6 +4,9 @@
 
 use std::path::Path;
 
+#[path = "common/said_scene.rs"]
+mod said_scene;
+
 use moreau::world::Interaction;
 use moreau::{BodyError, BodySpec, DVec2, Effects, Materials, Simulation, StepSettings, Wall, World};
 
@@ -41,6 +44,26 @@ fn a_scene_file_loads_into_the_simulation_the_command_line_steps() {
     };
     let e = e.to_string();
     assert!(e.contains("no_such_scene.toml"), "{e}");
+}
+
+/// A host loading a scene gets what `moreau check` prints: the file's warnings first in
+/// `check()`'s, then the start's, and its notes.
+#[test]
+fn a_loaded_scene_keeps_its_files_warnings_and_notes_for_the_host() {
+    let dir = std::env::temp_dir().join(format!("moreau_embedding_said_{}", std::process::id()));
+    let scene = said_scene::write_said_scene(&dir);
+    let mut sim = Simulation::from_scene(&scene).unwrap();
+    let notes = sim.notes().to_vec();
+    let warnings = sim.check().unwrap().to_vec();
+    assert!(notes.len() == 1 && notes[0].contains("800 grains") && notes[0].contains("numbered in rows"), "{notes:?}");
+    assert!(warnings.len() == 2, "{warnings:?}");
+    assert!(warnings[0].contains("spins") && warnings[1].contains("inside a wall"), "{warnings:?}");
+    // A simulation built from the scene's world by hand has the start's warning alone.
+    let s = moreau::scene::load(&scene).unwrap();
+    let mut by_hand = Simulation::new(s.world, s.settings).unwrap();
+    assert_eq!(by_hand.check().unwrap(), &warnings[1..]);
+    assert!(by_hand.notes().is_empty());
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]

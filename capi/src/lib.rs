@@ -47,8 +47,13 @@ pub struct MoreauSolution {
     device: CString,
 }
 
-/// A simulation stepped one Moreau–Jean step at a time.
-pub struct MoreauSimulation(Simulation);
+/// A simulation stepped one Moreau–Jean step at a time, with the last check's warnings and its
+/// scene file's notes as C strings.
+pub struct MoreauSimulation(Simulation, Vec<CString>, Vec<CString>);
+
+fn c_strings(lines: &[String]) -> Vec<CString> {
+    lines.iter().map(|l| CString::new(l.replace('\0', " ")).unwrap_or_default()).collect()
+}
 
 /// How to solve; fill with `moreau_solve_options_default` and change what you need.
 #[repr(C)]
@@ -438,8 +443,38 @@ pub extern "C" fn moreau_simulation_from_scene(path: *const c_char, out: *mut *m
     guard(|| {
         let path = text(path, "path")?;
         let sim = Simulation::from_scene(Path::new(path)).or_else(|e| fail(MoreauStatus::File, e.to_string()))?;
-        give(out, MoreauSimulation(sim))
+        let notes = c_strings(sim.notes());
+        give(out, MoreauSimulation(sim, Vec::new(), notes))
     })
+}
+
+/// Checks the world before the first step, as `moreau check` does (the first step checks when
+/// the host has not): a start that cannot be integrated fails with its message; `count` gets the
+/// number of warnings, the scene file's then the start's (grains outside the walls, in a wall,
+/// on top of each other), read with `moreau_simulation_warning`.
+#[no_mangle]
+pub extern "C" fn moreau_simulation_check(sim: *mut MoreauSimulation, count: *mut usize) -> MoreauStatus {
+    guard(|| {
+        let handle = object_mut(sim, "sim")?;
+        let found = handle.0.check().or_else(|e| fail(MoreauStatus::Step, e.to_string()))?;
+        handle.1 = c_strings(found);
+        copy_out(&[handle.1.len()], count, 1, "count")
+    })
+}
+
+/// Warning `k` of the last `moreau_simulation_check` ("" past the last, or for NULL); lives until
+/// the next check or the simulation's free.
+#[no_mangle]
+pub extern "C" fn moreau_simulation_warning(sim: *const MoreauSimulation, k: usize) -> *const c_char {
+    peek(sim).and_then(|s| s.1.get(k)).map_or(c"".as_ptr(), |w| w.as_ptr())
+}
+
+/// Note `k` of the scene file the simulation was loaded from: what loading did that the file
+/// does not spell out (a grains file numbered in rows), "" past the last or for NULL; lives as
+/// long as the simulation.
+#[no_mangle]
+pub extern "C" fn moreau_simulation_note(sim: *const MoreauSimulation, k: usize) -> *const c_char {
+    peek(sim).and_then(|s| s.2.get(k)).map_or(c"".as_ptr(), |n| n.as_ptr())
 }
 
 /// Runs the steps on `device` (`auto`, `cpu`, `gpu`) with `threads` CPU threads (0: all cores).

@@ -6,6 +6,9 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+#[path = "../../tests/common/said_scene.rs"]
+mod said_scene;
+
 use moreau::io::siconos::read_fc2d;
 use moreau::solvers::{Ordering, StopCriterion};
 use moreau::{Simulation, SolverKind, SolverOptions};
@@ -183,6 +186,23 @@ fn a_c_program_steps_a_pile_as_the_library_does() {
     assert_eq!(field(&out, "contacts") as usize, sim.contacts().len(), "{out}");
     assert!((field(&out, "top") - top).abs() < 1e-6, "{out}: Rust's top {top}");
     assert!((field(&out, "sum_rn") - sum).abs() <= 1e-8 * sum.abs(), "{out}: Rust's sum {sum:.9e}");
+}
+
+/// A scene with notes and warnings (grains in no spatial order, with spins but no rotation, one in
+/// the floor): the C program prints the library's, as `moreau run` does, before its steps.
+#[test]
+fn a_c_program_prints_a_scenes_notes_and_warnings_as_the_library_gives_them() {
+    let dir = std::env::temp_dir().join(format!("moreau_c_said_{}", std::process::id()));
+    let scene = said_scene::write_said_scene(&dir);
+    let (code, out, err) = run(&compile("step_scene"), &[scene.to_str().unwrap(), "1", "1"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let mut sim = Simulation::from_scene(&scene).unwrap();
+    let said: Vec<String> = sim.notes().iter().map(|n| format!("note: {n}")).collect();
+    let said: Vec<String> =
+        said.into_iter().chain(sim.check().unwrap().iter().map(|w| format!("warning: {w}"))).collect();
+    assert_eq!(said.len(), 3, "{said:?}");
+    assert_eq!(err.lines().map(String::from).collect::<Vec<_>>(), said);
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]

@@ -45,6 +45,19 @@ int main(int argc, char **argv) {
             return 1;
         }
     }
+    /* What `moreau run` prints before the steps: the scene's notes, then its warnings and the start's. */
+    for (size_t k = 0; *moreau_simulation_note(sim, k); k++) {
+        fprintf(stderr, "note: %s\n", moreau_simulation_note(sim, k));
+    }
+    size_t warnings = 0;
+    if (moreau_simulation_check(sim, &warnings) != MOREAU_STATUS_OK) {
+        fprintf(stderr, "error: %s\n", moreau_last_error());
+        moreau_simulation_free(sim);
+        return 1;
+    }
+    for (size_t k = 0; k < warnings; k++) {
+        fprintf(stderr, "warning: %s\n", moreau_simulation_warning(sim, k));
+    }
     int unconverged = 0;
     MoreauStepReport report = {0};
     for (int k = 0; k < steps; k++) {

@@ -15,7 +15,8 @@ or step a granular simulation::
     sim.positions, sim.velocities, sim.contacts()
 
 Arrays are numpy arrays (copies). Errors raise :class:`MoreauError` with the command line's
-message. Solves and steps release the GIL.
+message; what the command line prints as a warning (a scene's, a start's) is issued once as a
+``UserWarning``. Solves and steps release the GIL.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import os
 from os import PathLike
+import warnings
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -239,6 +241,7 @@ class Simulation:
                  solver: str = "nlgs", tol: float = 1e-4, max_iter: int = 10_000, anderson: int = 0,
                  focus: int = 0, criterion: str = "natural", ordering: str = "forward",
                  projection_slack: Optional[float] = None, omega: float = 1.0) -> None:
+        self._checked = False
         if isinstance(world, _moreau.Simulation):
             self._inner = world
             return
@@ -283,6 +286,27 @@ class Simulation:
         """The simulation a scene file describes (bodies, walls, materials, effects, settings)."""
         return cls(_moreau.Simulation.from_scene(path), 0.0)
 
+    def check(self) -> List[str]:
+        """Checks the world before the first step, as ``moreau check`` does: an unintegrable
+        start raises MoreauError; returns the warnings (the scene file's, then the start's:
+        grains outside the walls, in a wall, on top of each other), each also issued once as a
+        ``UserWarning``. The first :meth:`step` checks when this was not called."""
+        return self._check(stacklevel=3)
+
+    def _check(self, stacklevel: int) -> List[str]:
+        found = self._inner.check()
+        if not self._checked:
+            self._checked = True
+            for w in found:
+                warnings.warn(w, UserWarning, stacklevel=stacklevel)
+        return found
+
+    @property
+    def notes(self) -> List[str]:
+        """What loading the scene file did that it does not spell out (a grains file numbered in
+        rows: ``moreau run``'s ``note:`` lines); empty for a simulation built from a World."""
+        return self._inner.notes()
+
     def set_device(self, device: str = "cpu", threads: int = 0) -> str:
         """Solves the steps on ``device`` (cpu, gpu, auto) with ``threads`` CPU threads (0: all
         cores); returns the device chosen and why."""
@@ -291,7 +315,9 @@ class Simulation:
     def step(self) -> Dict[str, Any]:
         """Advances one step; returns its report (contacts, iterations, error, converged,
         stop_reason, max_penetration, seconds, …). A step that blows up raises MoreauError and
-        the simulation keeps its last good state."""
+        the simulation keeps its last good state. The first step checks the world (:meth:`check`)."""
+        if not self._checked:
+            self._check(stacklevel=3)
         return self._inner.step()
 
     def measures(self) -> Dict[str, Any]:

@@ -468,6 +468,17 @@ impl Simulation {
         moreau::Simulation::from_scene(&path).map(Self).map_err(error)
     }
 
+    /// Checks the world before the first step (the first step does when the host has not):
+    /// the scene file's warnings and the start's; an unintegrable start raises.
+    fn check(&mut self) -> PyResult<Vec<String>> {
+        self.0.check().map(<[String]>::to_vec).map_err(error)
+    }
+
+    /// What loading the scene file did that it does not spell out (notes, not warnings).
+    fn notes(&self) -> Vec<String> {
+        self.0.notes().to_vec()
+    }
+
     /// Solves the steps on `device` (auto, cpu, gpu) with `threads` CPU threads (0: all
     /// cores); returns the device and why it was chosen.
     #[pyo3(signature = (device = "cpu", threads = 0))]

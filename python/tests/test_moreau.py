@@ -453,3 +453,48 @@ def test_a_solve_releases_the_gil():
     assert done and done[0].iterations == 300
     # Holding the GIL for the whole solve would leave this thread a handful of ticks.
     assert ticks > 1000, ticks
+
+
+def test_the_warnings_and_notes_of_the_command_line_reach_python_once(tmp_path):
+    import random
+    import warnings
+
+    # Grains in no spatial order (numbered in rows: a note), with spins but no effect rotation
+    # (the scene's warning), one of them 0.04 m into the floor (the start's warning).
+    rows = [(0.05 + 0.1 * j, 0.05 + 0.1 * i) for i in range(20) for j in range(40)]
+    rows[0] = (0.05, 0.01)
+    order = list(range(len(rows)))
+    random.Random(3).shuffle(order)
+    (tmp_path / "grains.csv").write_text("x,y,r,spin\n" + "".join(f"{rows[k][0]},{rows[k][1]},0.05,1.0\n" for k in order))
+    scene = tmp_path / "shuffled.toml"
+    scene.write_text(
+        'name = "shuffled"\neffects = ["gravity", "friction"]\n[time]\nstep = 1e-3\nsteps = 2\n[contact]\nfriction = 0.3\n'
+        '[[material]]\nname = "glass"\ndensity = 2500.0\n'
+        "[[wall]]\ncontainer = { min = [0.0, 0.0], max = [4.0, 3.0] }\n"
+        '[[grains]]\nfile = "grains.csv"\nmaterial = "glass"\n'
+    )
+    sim = moreau.Simulation.from_scene(scene)
+    assert any("800 grains of" in n and "numbered in rows" in n for n in sim.notes), sim.notes
+    with pytest.warns(UserWarning) as record:
+        sim.step()
+    said = [str(r.message) for r in record]
+    assert len(said) == 2 and "spins but the effect `rotation`" in said[0] and "inside a wall" in said[1], said
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sim.step()
+        assert sim.check() == said
+    # `moreau check` prints the same lines.
+    out = subprocess.run([cli(), "check", str(scene)], capture_output=True, text=True, check=True).stdout
+    assert all(f"warning: {w}" in out for w in said) and all(f"note: {n}" in out for n in sim.notes), out
+
+    # A simulation built from a World: the start's warnings, from check(), issued once.
+    world = moreau.World([("g", 1.0)], friction=0.3, gravity=(0.0, -9.81))
+    world.add_wall((-1.0, 0.0), (1.0, 0.0), "g")
+    world.add_disk((0.0, 0.2), 0.5, "g")
+    sim = moreau.Simulation(world, h=1e-3)
+    with pytest.warns(UserWarning, match="inside a wall") as record:
+        found = sim.check()
+    assert [str(r.message) for r in record] == found and sim.notes == []
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sim.step()

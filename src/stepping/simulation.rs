@@ -274,6 +274,8 @@ pub struct Simulation {
     /// Warnings about the start, from [`Self::check`].
     pub(super) warnings: Vec<String>,
     checked: bool,
+    /// A scene file's warnings and notes, when the simulation came from one ([`Self::from_scene`]).
+    scene_said: (Vec<String>, Vec<String>),
     /// External forces and torques on each body for the next step (empty when none is applied).
     pub(super) forces: Vec<(DVec2, f64)>,
     /// The threads this simulation's steps run on, when the host chose a count.
@@ -305,6 +307,7 @@ impl Simulation {
             extent: None,
             warnings: Vec::new(),
             checked: false,
+            scene_said: (Vec::new(), Vec::new()),
             forces: Vec::new(),
             pool: None,
         })
@@ -313,15 +316,21 @@ impl Simulation {
     /// Checks the world before the first step: refuses one that cannot be integrated with this
     /// time step (coordinates f64 cannot resolve at the grain size, a kinetic energy that
     /// overflows, a grain crossing the container in one step), and returns warnings about its
-    /// start (grains outside the walls, in a wall, on top of each other). The first step runs it
-    /// when the host has not.
+    /// start (grains outside the walls, in a wall, on top of each other), after its scene file's
+    /// own ([`Self::from_scene`]). The first step runs it when the host has not.
     pub fn check(&mut self) -> Result<&[String], StepError> {
         if !self.checked {
-            self.warnings =
-                super::checks::check_start(&self.world, self.settings.h).map_err(StepError::Unintegrable)?;
+            let start = super::checks::check_start(&self.world, self.settings.h).map_err(StepError::Unintegrable)?;
+            self.warnings = self.scene_said.0.iter().cloned().chain(start).collect();
             self.checked = true;
         }
         Ok(&self.warnings)
+    }
+
+    /// What loading its scene file did that the file does not spell out (a grains file numbered
+    /// in rows); empty for a simulation built otherwise. Notes, not warnings.
+    pub fn notes(&self) -> &[String] {
+        &self.scene_said.1
     }
 
     /// The scene's extent for the runaway test of each step.
@@ -400,10 +409,13 @@ impl Simulation {
     }
 
     /// The simulation a scene file describes (its bodies, walls, materials, effects and step
-    /// settings), on the CPU; `scene.steps` and the outputs are the command line's business.
+    /// settings), on the CPU; `scene.steps` and the outputs are the command line's business. The
+    /// file's warnings come first in [`Self::check`]'s, its notes from [`Self::notes`].
     pub fn from_scene(path: &std::path::Path) -> Result<Self, crate::Error> {
         let scene = crate::scene::load(path)?;
-        Ok(Self::new(scene.world, scene.settings)?)
+        let mut sim = Self::new(scene.world, scene.settings)?;
+        sim.scene_said = (scene.warnings, scene.notes);
+        Ok(sim)
     }
 
     /// Adds a body; its density comes from its material.
