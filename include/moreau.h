@@ -119,6 +119,20 @@ typedef struct MoreauContact {
   uint32_t status;
 } MoreauContact;
 
+// The granular measures of the current state (definitions in README, "Simulating a scene").
+typedef struct MoreauMeasures {
+  // Grain area over the area the grains occupy.
+  double packing_fraction;
+  // Mean active contacts per grain, rattlers excluded.
+  double coordination;
+  // Grains with fewer than 2 active contacts.
+  size_t rattlers;
+  // Mean stress (Pa·m in 2D).
+  double stress_xx;
+  double stress_yy;
+  double stress_xy;
+} MoreauMeasures;
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -269,6 +283,43 @@ enum MoreauStatus moreau_simulation_apply_force(struct MoreauSimulation *sim,
                                                 double fx,
                                                 double fy,
                                                 double torque);
+
+// An impulse (N·s) on a body at the world point (`px`, `py`), applied at once.
+enum MoreauStatus moreau_simulation_apply_impulse(struct MoreauSimulation *sim,
+                                                  size_t body,
+                                                  double ix,
+                                                  double iy,
+                                                  double px,
+                                                  double py);
+
+// Adds a disk between steps, of the named material, with a velocity; `body` (may be NULL) gets
+// its index (the last).
+enum MoreauStatus moreau_simulation_add_disk(struct MoreauSimulation *sim,
+                                             double x,
+                                             double y,
+                                             double radius,
+                                             const char *material,
+                                             double vx,
+                                             double vy,
+                                             size_t *body);
+
+// The granular measures of the current state (the last step's contacts).
+enum MoreauStatus moreau_simulation_measures(const struct MoreauSimulation *sim,
+                                             struct MoreauMeasures *out);
+
+// Writes the state between steps as a checkpoint file (JSON); with `scene` (may be NULL),
+// stamped with that scene file's identity, so that `moreau run SCENE --restart` goes on from it.
+enum MoreauStatus moreau_simulation_write_checkpoint(const struct MoreauSimulation *sim,
+                                                     const char *path,
+                                                     const char *scene);
+
+// Goes back to a checkpoint file (this simulation's, or `moreau run`'s): the steps after it are
+// those the first run took. With `scene` (may be NULL), the checkpoint must come from that
+// file. A file that cannot be read fails with `MOREAU_STATUS_FILE`, a checkpoint of another
+// world with `MOREAU_STATUS_STEP`; either changes nothing.
+enum MoreauStatus moreau_simulation_restore(struct MoreauSimulation *sim,
+                                            const char *path,
+                                            const char *scene);
 
 // Removes a body: the bodies after it move down one index, its contacts are dropped.
 enum MoreauStatus moreau_simulation_remove_body(struct MoreauSimulation *sim, size_t body);

@@ -126,6 +126,22 @@ pub struct MoreauStepReport {
     pub velocity_scale: f64,
 }
 
+/// The granular measures of the current state (definitions in README, "Simulating a scene").
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MoreauMeasures {
+    /// Grain area over the area the grains occupy.
+    pub packing_fraction: f64,
+    /// Mean active contacts per grain, rattlers excluded.
+    pub coordination: f64,
+    /// Grains with fewer than 2 active contacts.
+    pub rattlers: usize,
+    /// Mean stress (Pa·m in 2D).
+    pub stress_xx: f64,
+    pub stress_yy: f64,
+    pub stress_xy: f64,
+}
+
 /// One contact of the last step.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default)]
@@ -701,6 +717,103 @@ pub extern "C" fn moreau_simulation_apply_force(
     })
 }
 
+/// An impulse (N·s) on a body at the world point (`px`, `py`), applied at once.
+#[no_mangle]
+pub extern "C" fn moreau_simulation_apply_impulse(
+    sim: *mut MoreauSimulation,
+    body: usize,
+    ix: f64,
+    iy: f64,
+    px: f64,
+    py: f64,
+) -> MoreauStatus {
+    guard(|| {
+        let sim = &mut object_mut(sim, "sim")?.0;
+        sim.apply_impulse(body, moreau::DVec2::new(ix, iy), moreau::DVec2::new(px, py))
+            .or_else(|e| fail(MoreauStatus::InvalidArgument, e.to_string()))
+    })
+}
+
+/// Adds a disk between steps, of the named material, with a velocity; `body` (may be NULL) gets
+/// its index (the last).
+#[no_mangle]
+pub extern "C" fn moreau_simulation_add_disk(
+    sim: *mut MoreauSimulation,
+    x: f64,
+    y: f64,
+    radius: f64,
+    material: *const c_char,
+    vx: f64,
+    vy: f64,
+    body: *mut usize,
+) -> MoreauStatus {
+    guard(|| {
+        let sim = &mut object_mut(sim, "sim")?.0;
+        let material = sim
+            .material(text(material, "material")?)
+            .or_else(|e| fail(MoreauStatus::InvalidArgument, e.to_string()))?;
+        let mut spec = moreau::BodySpec::disk(moreau::DVec2::new(x, y), radius, material);
+        spec.velocity = moreau::DVec2::new(vx, vy);
+        let index = sim.add_body(&spec).or_else(|e| fail(MoreauStatus::InvalidArgument, e.to_string()))?;
+        match body.is_null() {
+            true => Ok(()),
+            false => copy_out(&[index], body, 1, "body"),
+        }
+    })
+}
+
+/// The granular measures of the current state (the last step's contacts).
+#[no_mangle]
+pub extern "C" fn moreau_simulation_measures(sim: *const MoreauSimulation, out: *mut MoreauMeasures) -> MoreauStatus {
+    guard(|| {
+        let m = object(sim, "sim")?.0.measures();
+        let measures = MoreauMeasures {
+            packing_fraction: m.packing_fraction,
+            coordination: m.coordination,
+            rattlers: m.rattlers,
+            stress_xx: m.stress_xx,
+            stress_yy: m.stress_yy,
+            stress_xy: m.stress_xy,
+        };
+        copy_out(&[measures], out, 1, "out")
+    })
+}
+
+/// Writes the state between steps as a checkpoint file (JSON); with `scene` (may be NULL),
+/// stamped with that scene file's identity, so that `moreau run SCENE --restart` goes on from it.
+#[no_mangle]
+pub extern "C" fn moreau_simulation_write_checkpoint(
+    sim: *const MoreauSimulation,
+    path: *const c_char,
+    scene: *const c_char,
+) -> MoreauStatus {
+    guard(|| {
+        let sim = &object(sim, "sim")?.0;
+        let scene = (!scene.is_null()).then(|| text(scene, "scene")).transpose()?;
+        moreau::io::checkpoint::save(sim, Path::new(text(path, "path")?), scene.map(Path::new))
+            .or_else(|e| fail(MoreauStatus::File, e.to_string()))
+    })
+}
+
+/// Goes back to a checkpoint file (this simulation's, or `moreau run`'s): the steps after it are
+/// those the first run took. With `scene` (may be NULL), the checkpoint must come from that
+/// file. A file that cannot be read fails with `MOREAU_STATUS_FILE`, a checkpoint of another
+/// world with `MOREAU_STATUS_STEP`; either changes nothing.
+#[no_mangle]
+pub extern "C" fn moreau_simulation_restore(
+    sim: *mut MoreauSimulation,
+    path: *const c_char,
+    scene: *const c_char,
+) -> MoreauStatus {
+    guard(|| {
+        let sim = &mut object_mut(sim, "sim")?.0;
+        let scene = (!scene.is_null()).then(|| text(scene, "scene")).transpose()?;
+        let c = moreau::io::checkpoint::load(Path::new(text(path, "path")?), scene.map(Path::new))
+            .or_else(|e| fail(MoreauStatus::File, e.to_string()))?;
+        sim.restore(&c).or_else(|e| fail(MoreauStatus::Step, e.to_string()))
+    })
+}
+
 /// Removes a body: the bodies after it move down one index, its contacts are dropped.
 #[no_mangle]
 pub extern "C" fn moreau_simulation_remove_body(sim: *mut MoreauSimulation, body: usize) -> MoreauStatus {
@@ -801,5 +914,33 @@ mod tests {
         assert_eq!(moreau_simulation_step(std::ptr::null_mut(), std::ptr::null_mut()), MoreauStatus::InvalidArgument);
         assert_eq!(moreau_problem_read_fc2d(std::ptr::null(), &mut problem), MoreauStatus::InvalidArgument);
         assert_eq!(moreau_version(), moreau_version());
+    }
+
+    /// A disk of an unknown material, a missing checkpoint and another world's checkpoint are
+    /// refused with their status and message, and leave the simulation as it was.
+    #[test]
+    fn insertions_and_checkpoints_refused_through_c_name_why_and_change_nothing() {
+        let scene = c"../scenes/pile.toml";
+        let mut sim = std::ptr::null_mut();
+        assert_eq!(moreau_simulation_from_scene(scene.as_ptr(), &mut sim), MoreauStatus::Ok, "{}", last_error());
+        let n = moreau_simulation_body_count(sim);
+        let mut body = 0;
+        let status = moreau_simulation_add_disk(sim, 0.0, 1.0, 0.01, c"sand".as_ptr(), 0.0, 0.0, &mut body);
+        assert_eq!(status, MoreauStatus::InvalidArgument);
+        assert!(last_error().contains("sand"), "{}", last_error());
+        let status = moreau_simulation_restore(sim, c"no_such_checkpoint.json".as_ptr(), std::ptr::null());
+        assert_eq!(status, MoreauStatus::File);
+        assert!(last_error().contains("no_such_checkpoint.json"), "{}", last_error());
+        // This world's checkpoint, then a disk added: the checkpoint is of other bodies now.
+        let path = std::env::temp_dir().join(format!("moreau_capi_checkpoint_{}.json", std::process::id()));
+        let path = CString::new(path.to_str().unwrap()).unwrap();
+        assert_eq!(moreau_simulation_write_checkpoint(sim, path.as_ptr(), scene.as_ptr()), MoreauStatus::Ok);
+        let status = moreau_simulation_add_disk(sim, 0.05, 0.25, 0.01, c"glass".as_ptr(), 0.0, 0.0, &mut body);
+        assert_eq!((status, body), (MoreauStatus::Ok, n), "{}", last_error());
+        assert_eq!(moreau_simulation_restore(sim, path.as_ptr(), scene.as_ptr()), MoreauStatus::Step);
+        assert!(last_error().contains(&format!("position has {n} entries, the scene {}", n + 1)), "{}", last_error());
+        assert_eq!(moreau_simulation_body_count(sim), n + 1);
+        std::fs::remove_file(path.to_str().unwrap()).ok();
+        moreau_simulation_free(sim);
     }
 }

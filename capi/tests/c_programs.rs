@@ -188,6 +188,32 @@ fn a_c_program_steps_a_pile_as_the_library_does() {
     assert!((field(&out, "sum_rn") - sum).abs() <= 1e-8 * sum.abs(), "{out}: Rust's sum {sum:.9e}");
 }
 
+/// A checkpoint kept and gone on from in C gives the straight run's state to the bit, which is
+/// the library's, and a disk poured in lands in the world.
+#[test]
+fn a_c_program_restarts_a_scene_from_its_checkpoint_as_the_library_steps_it() {
+    let program = compile("restart_scene");
+    let scene = repo().join("scenes/pile.toml");
+    let checkpoint = std::env::temp_dir().join(format!("moreau_c_restart_{}.json", std::process::id()));
+    let (code, out, err) = run(&program, &[scene.to_str().unwrap(), "30", checkpoint.to_str().unwrap(), "glass"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    assert!(out.contains("restart identical"), "{out}");
+    let mut sim = Simulation::from_scene(&scene).unwrap();
+    sim.set_threads(1).unwrap();
+    (0..40).for_each(|_| drop(sim.step().unwrap()));
+    let m = sim.measures();
+    let straight = out.lines().find(|l| l.starts_with("straight:")).unwrap();
+    assert_eq!(field(straight, "packing_fraction"), m.packing_fraction, "{out}");
+    assert_eq!(field(straight, "stress_yy"), m.stress_yy, "{out}");
+    assert_eq!(field(straight, "rattlers") as usize, m.rattlers, "{out}");
+    assert_eq!(field(&out, "body") as usize, sim.body_count(), "{out}");
+    assert_eq!(field(&out, "of") as usize, sim.body_count() + 1, "{out}");
+    // The command line goes on from the C program's checkpoint too.
+    let c = moreau::io::checkpoint::read_checkpoint(&checkpoint, &scene).unwrap();
+    assert_eq!(c.steps_done, 30);
+    std::fs::remove_file(&checkpoint).ok();
+}
+
 /// A scene with notes and warnings (grains in no spatial order, with spins but no rotation, one in
 /// the floor): the C program prints the library's, as `moreau run` does, before its steps.
 #[test]

@@ -603,22 +603,15 @@ impl Simulation {
     /// `moreau run` does, so that the command line can go on from it.
     #[pyo3(signature = (path, scene = None))]
     fn write_checkpoint(&self, path: PathBuf, scene: Option<PathBuf>) -> PyResult<()> {
-        let mut c = self.0.checkpoint();
-        if let Some(scene) = scene {
-            (c.scene, c.scene_fingerprint) = moreau::io::checkpoint::scene_identity(&scene).map_err(error)?;
-        }
-        moreau::io::checkpoint::write_checkpoint(&c, &path).map_err(error)
+        moreau::io::checkpoint::save(&self.0, &path, scene.as_deref()).map_err(error)
     }
 
     /// Goes back to a checkpoint: the steps after it are those the first run took (same solver,
     /// threads and device). With `scene`, the checkpoint must come from that scene file.
     #[pyo3(signature = (path, scene = None))]
     fn restore(&mut self, path: PathBuf, scene: Option<PathBuf>) -> PyResult<()> {
-        let c = match scene {
-            Some(scene) => moreau::io::checkpoint::read_checkpoint(&path, &scene),
-            None => moreau::io::checkpoint::read_checkpoint_file(&path),
-        };
-        self.0.restore(&c.map_err(error)?).map_err(error)
+        let c = moreau::io::checkpoint::load(&path, scene.as_deref()).map_err(error)?;
+        self.0.restore(&c).map_err(error)
     }
 
     /// Keep each step's contact problem, for `last_problem`.

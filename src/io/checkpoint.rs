@@ -5,7 +5,7 @@ use std::path::Path;
 
 use thiserror::Error;
 
-use crate::stepping::Checkpoint;
+use crate::stepping::{Checkpoint, Simulation};
 
 /// A checkpoint that cannot be written, read or applied.
 #[derive(Debug, Error)]
@@ -67,6 +67,25 @@ pub fn read_checkpoint_file(path: &Path) -> Result<Checkpoint, CheckpointError> 
     let p = path.display().to_string();
     let text = std::fs::read(path).map_err(|cause| CheckpointError::Io { path: p.clone(), cause })?;
     serde_json::from_slice(&text).map_err(|cause| CheckpointError::Format { path: p, cause })
+}
+
+/// Writes `sim`'s checkpoint at `path`; with `scene`, stamped with that scene file's identity, as
+/// `moreau run` stamps its own, so that `moreau run SCENE --restart` goes on from it.
+pub fn save(sim: &Simulation, path: &Path, scene: Option<&Path>) -> Result<(), CheckpointError> {
+    let mut c = sim.checkpoint();
+    if let Some(scene) = scene {
+        (c.scene, c.scene_fingerprint) = scene_identity(scene)?;
+    }
+    write_checkpoint(&c, path)
+}
+
+/// The checkpoint at `path`: with `scene`, refused unless it came from that scene file
+/// ([`read_checkpoint`]); without, whatever it came from ([`read_checkpoint_file`]).
+pub fn load(path: &Path, scene: Option<&Path>) -> Result<Checkpoint, CheckpointError> {
+    match scene {
+        Some(scene) => read_checkpoint(path, scene),
+        None => read_checkpoint_file(path),
+    }
 }
 
 /// Reads a checkpoint and checks that it belongs to the scene file `scene` (by fingerprint).
