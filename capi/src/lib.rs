@@ -749,12 +749,10 @@ pub extern "C" fn moreau_simulation_add_disk(
 ) -> MoreauStatus {
     guard(|| {
         let sim = &mut object_mut(sim, "sim")?.0;
-        let material = sim
-            .material(text(material, "material")?)
+        let (center, velocity) = (moreau::DVec2::new(x, y), moreau::DVec2::new(vx, vy));
+        let index = sim
+            .add_disk(center, radius, text(material, "material")?, velocity)
             .or_else(|e| fail(MoreauStatus::InvalidArgument, e.to_string()))?;
-        let mut spec = moreau::BodySpec::disk(moreau::DVec2::new(x, y), radius, material);
-        spec.velocity = moreau::DVec2::new(vx, vy);
-        let index = sim.add_body(&spec).or_else(|e| fail(MoreauStatus::InvalidArgument, e.to_string()))?;
         match body.is_null() {
             true => Ok(()),
             false => copy_out(&[index], body, 1, "body"),

@@ -588,9 +588,7 @@ impl Simulation {
     /// Adds a disk between steps; returns its index.
     #[pyo3(signature = (center, radius, material, velocity = (0.0, 0.0)))]
     fn add_disk(&mut self, center: (f64, f64), radius: f64, material: &str, velocity: (f64, f64)) -> PyResult<usize> {
-        let mut spec = BodySpec::disk(vec2(center), radius, self.0.material(material).map_err(error)?);
-        spec.velocity = vec2(velocity);
-        self.0.add_body(&spec).map_err(error)
+        self.0.add_disk(vec2(center), radius, material, vec2(velocity)).map_err(error)
     }
 
     /// Removes a body; the bodies after it move down one index.

@@ -335,16 +335,15 @@ fn check_command(path: &std::path::Path, strict: bool) -> Result<()> {
             return Ok(());
         }
     };
-    let (mut warnings, notes) = (scene.warnings.clone(), scene.notes.clone());
     let (bodies, walls) = (scene.world.bodies.len(), scene.world.walls.len());
     let (h, steps, name) = (scene.settings.h, scene.steps, scene.name.clone());
     let alert = scene.settings.alert;
-    let mut sim = crate::Simulation::new(scene.world, scene.settings)?;
-    warnings.extend(sim.check().with_context(|| format!("{}", path.display()))?.iter().cloned());
+    let mut sim = crate::Simulation::from_loaded(scene)?;
+    let warnings = sim.check().with_context(|| format!("{}", path.display()))?.to_vec();
     for w in &warnings {
         println!("warning: {w}");
     }
-    for n in &notes {
+    for n in sim.notes() {
         println!("note: {n}");
     }
     println!(

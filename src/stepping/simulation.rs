@@ -412,7 +412,12 @@ impl Simulation {
     /// settings), on the CPU; `scene.steps` and the outputs are the command line's business. The
     /// file's warnings come first in [`Self::check`]'s, its notes from [`Self::notes`].
     pub fn from_scene(path: &std::path::Path) -> Result<Self, crate::Error> {
-        let scene = crate::scene::load(path)?;
+        Ok(Self::from_loaded(crate::scene::load(path)?)?)
+    }
+
+    /// The simulation of a scene already loaded, as [`Self::from_scene`] makes it (the file's
+    /// warnings and notes kept).
+    pub fn from_loaded(scene: crate::scene::Scene) -> Result<Self, StepError> {
         let mut sim = Self::new(scene.world, scene.settings)?;
         sim.scene_said = (scene.warnings, scene.notes);
         Ok(sim)
@@ -423,6 +428,19 @@ impl Simulation {
         let density = *self.world.materials.density.get(spec.material).ok_or(BodyError::NoMaterial(spec.material))?;
         self.extent = None;
         self.world.bodies.add(spec, density).map_err(BodyError::Invalid)
+    }
+
+    /// Adds a disk of the named material, moving at `velocity`; returns its index.
+    pub fn add_disk(
+        &mut self,
+        center: DVec2,
+        radius: f64,
+        material: &str,
+        velocity: DVec2,
+    ) -> Result<usize, BodyError> {
+        let mut spec = BodySpec::disk(center, radius, self.material(material)?);
+        spec.velocity = velocity;
+        self.add_body(&spec)
     }
 
     /// Adds a wall; returns its index.
