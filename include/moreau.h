@@ -37,6 +37,10 @@ typedef struct MoreauSimulation MoreauSimulation;
 // A solve's result.
 typedef struct MoreauSolution MoreauSolution;
 
+// Materials, their contact laws, bodies and walls, gathered before a simulation starts; each
+// input is checked as a scene file's is.
+typedef struct MoreauWorld MoreauWorld;
+
 // How to solve; fill with `moreau_solve_options_default` and change what you need.
 typedef struct MoreauSolveOptions {
   // `nlgs`, `cpg`, `pcpg`, `latin`, `jacobi`, `apgd`, `newton`, `nlgs-newton`, `interior-point`.
@@ -82,6 +86,45 @@ typedef struct MoreauSolveSummary {
   // The measure the criterion judged against `tol` (`error` itself under `natural`).
   double judged_error;
 } MoreauSolveSummary;
+
+// The contact law of a pair of materials (each coefficient finite and >= 0, restitution <= 1);
+// an effect is on in the world once a law has it.
+typedef struct MoreauLaw {
+  // Coulomb coefficient μ.
+  double friction;
+  // Newton restitution coefficient, in [0, 1].
+  double restitution;
+  // The impulse per step a bond can hold.
+  double cohesion;
+  // η: the rolling resistance torque is at most η R r_n (needs `rotation`).
+  double rolling_resistance;
+} MoreauLaw;
+
+// What a world built in code has besides its materials; fill with
+// `moreau_world_settings_default` and change what you need.
+typedef struct MoreauWorldSettings {
+  // Gravity on every moving body, (`gravity_x`, `gravity_y`) in m/s², when true.
+  bool gravity;
+  double gravity_x;
+  double gravity_y;
+  // Bodies turn: angles, spins, inertia and lever arms.
+  bool rotation;
+  // Walls may move with a prescribed velocity.
+  bool moving_walls;
+  // The contact law of every pair of materials (`moreau_world_set_interaction` changes a pair's).
+  struct MoreauLaw law;
+} MoreauWorldSettings;
+
+// How a body added to a world moves at the start; NULL in its place: at rest, free.
+typedef struct MoreauMotion {
+  // Velocity (m/s).
+  double vx;
+  double vy;
+  // Spin (rad/s; needs the setting `rotation`).
+  double spin;
+  // A fixed body never moves (no velocity, no spin).
+  bool fixed;
+} MoreauMotion;
 
 // What one step did.
 typedef struct MoreauStepReport {
@@ -195,6 +238,88 @@ const char *moreau_solution_device(const struct MoreauSolution *solution);
 
 void moreau_solution_free(struct MoreauSolution *solution);
 
+// Gravity (0, −9.81) on, no rotation, fixed walls, every coefficient of the law 0.
+struct MoreauWorldSettings moreau_world_settings_default(void);
+
+// An empty world of `count` materials, `names[k]` of density `densities[k]` (kg/m²);
+// `settings` NULL takes `moreau_world_settings_default`'s.
+enum MoreauStatus moreau_world_new(const char *const *names,
+                                   const double *densities,
+                                   size_t count,
+                                   const struct MoreauWorldSettings *settings,
+                                   struct MoreauWorld **out);
+
+// The contact law between materials `a` and `b` (by name).
+enum MoreauStatus moreau_world_set_interaction(struct MoreauWorld *world,
+                                               const char *a,
+                                               const char *b,
+                                               struct MoreauLaw law);
+
+// Adds a disk of the named material, moving as `motion` says (NULL: at rest); `body` (may be
+// NULL) gets its index.
+enum MoreauStatus moreau_world_add_disk(struct MoreauWorld *world,
+                                        double x,
+                                        double y,
+                                        double radius,
+                                        const char *material,
+                                        const struct MoreauMotion *motion,
+                                        size_t *body);
+
+// Adds a convex polygon of `count` vertices `(x0, y0, x1, …)` relative to its centre (`x`, `y`),
+// turned by `angle` (rad), moving as `motion` says (NULL: at rest); `body` (may be NULL) gets its
+// index.
+enum MoreauStatus moreau_world_add_polygon(struct MoreauWorld *world,
+                                           double x,
+                                           double y,
+                                           const double *vertices,
+                                           size_t count,
+                                           double angle,
+                                           const char *material,
+                                           const struct MoreauMotion *motion,
+                                           size_t *body);
+
+// Adds a wall segment from (`ax`, `ay`) to (`bx`, `by`), moving at (`vx`, `vy`) (a velocity needs
+// the setting `moving_walls`); `wall` (may be NULL) gets its index.
+enum MoreauStatus moreau_world_add_wall(struct MoreauWorld *world,
+                                        double ax,
+                                        double ay,
+                                        double bx,
+                                        double by,
+                                        const char *material,
+                                        double vx,
+                                        double vy,
+                                        size_t *wall);
+
+// Adds the disks of a grains CSV file (a scene's `[[grains]]` columns: x, y, r and optionally
+// vx, vy, spin, tag, material), each of `material` unless its row names one, numbered as `order`
+// says (`auto`, `space`, `file`; NULL: `auto`). `count` gets the number of rows; each row's body
+// is copied out with `moreau_world_copy_grain_bodies`. Nothing is added when a row is refused
+// (the message names the file, the line and the column).
+enum MoreauStatus moreau_world_add_grains(struct MoreauWorld *world,
+                                          const char *path,
+                                          const char *material,
+                                          const char *order,
+                                          size_t *count);
+
+// Copies the body of each row of the last `moreau_world_add_grains` file, in the file's order,
+// into `bodies`, which holds `len >= count`.
+enum MoreauStatus moreau_world_copy_grain_bodies(const struct MoreauWorld *world,
+                                                 size_t *bodies,
+                                                 size_t len);
+
+// The number of bodies (0 for NULL).
+size_t moreau_world_body_count(const struct MoreauWorld *world);
+
+void moreau_world_free(struct MoreauWorld *world);
+
+// A simulation of (a copy of) `world` with time step `h` (s), on the CPU: NLGS at tol 1e-4, the
+// alert distance 5 % of the smallest grain radius; `options` (may be NULL) sets the solver as
+// `moreau_simulation_set_solver` does. The world stays the caller's, to free or build on.
+enum MoreauStatus moreau_simulation_new(const struct MoreauWorld *world,
+                                        double h,
+                                        const struct MoreauSolveOptions *options,
+                                        struct MoreauSimulation **out);
+
 // The simulation a scene file describes (bodies, walls, materials, effects, step settings).
 enum MoreauStatus moreau_simulation_from_scene(const char *path, struct MoreauSimulation **out);
 
@@ -276,6 +401,11 @@ enum MoreauStatus moreau_simulation_set_velocity(struct MoreauSimulation *sim,
                                                  size_t body,
                                                  double vx,
                                                  double vy);
+
+// Sets a body's spin (rad/s) from the next step on (needs the effect rotation).
+enum MoreauStatus moreau_simulation_set_spin(struct MoreauSimulation *sim,
+                                             size_t body,
+                                             double spin);
 
 // Adds a force (and a torque, with the effect rotation) on a body during the next step only.
 enum MoreauStatus moreau_simulation_apply_force(struct MoreauSimulation *sim,

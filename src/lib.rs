@@ -16,15 +16,15 @@
 //! A host steps a scene file, or a world it builds, one Moreau–Jean step at a time:
 //!
 //! ```
-//! use moreau::{BodySpec, DVec2, Effects, Materials, Simulation, StepSettings, Wall, World};
+//! use moreau::{BodySpec, DVec2, Simulation, StepSettings, Wall, World};
 //! use moreau::world::Interaction;
 //!
+//! // Each input checked as a scene file's is; friction is on because the law has it.
 //! let glass = Interaction { friction: 0.3, ..Interaction::default() };
-//! let materials = Materials::new(vec!["glass".into()], vec![2500.0], glass);
-//! let effects = Effects { gravity: Some(DVec2::new(0.0, -9.81)), friction: true, ..Effects::default() };
-//! let mut world = World::new(effects, materials);
-//! world.walls.push(Wall::segment(DVec2::new(-1.0, 0.0), DVec2::new(1.0, 0.0), 0));
-//! world.bodies.add(&BodySpec::disk(DVec2::new(0.0, 0.05), 0.05, 0), 2500.0).unwrap();
+//! let gravity = Some(DVec2::new(0.0, -9.81));
+//! let mut world = World::in_code(vec![("glass".into(), 2500.0)], glass, gravity, false, false)?;
+//! world.add_wall(Wall::segment(DVec2::new(-1.0, 0.0), DVec2::new(1.0, 0.0), 0))?;
+//! world.add_body(&BodySpec::disk(DVec2::new(0.0, 0.05), 0.05, world.material_named("glass")?))?;
 //! let settings = StepSettings::for_world(&world, 1e-3);
 //! let mut sim = Simulation::new(world, settings)?;
 //! let grain = sim.add_body(&BodySpec::disk(DVec2::new(0.0, 0.2), 0.05, sim.material("glass")?))?;
@@ -75,6 +75,9 @@ pub enum Error {
     /// A request about a body refused.
     #[error(transparent)]
     Body(#[from] BodyError),
+    /// A world built in code refused (a material, a law, a wall, a body).
+    #[error(transparent)]
+    World(#[from] world::WorldError),
     /// A contact problem refused.
     #[error(transparent)]
     Problem(#[from] problem::ProblemError),

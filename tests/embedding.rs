@@ -132,7 +132,12 @@ fn bad_requests_are_named_errors_never_panics() {
     let k = sim.add_body(&fixed).unwrap();
     assert_eq!(sim.apply_impulse(k, DVec2::X, DVec2::ZERO), Err(BodyError::Fixed(k)));
     let moving = Wall { velocity: DVec2::X, ..Wall::segment(DVec2::ZERO, DVec2::X, 0) };
-    assert_eq!(sim.add_wall(moving), Err(BodyError::MovingWall));
+    let e = sim.add_wall(moving).unwrap_err();
+    assert!(matches!(e, BodyError::World(moreau::world::WorldError::Wall { index: 1, .. })), "{e:?}");
+    assert!(e.to_string().contains("needs the effect moving_walls"), "{e}");
+    let e = sim.add_wall(Wall::segment(DVec2::X, DVec2::X, 0)).unwrap_err();
+    assert!(e.to_string().contains("segment endpoints must be finite and distinct"), "{e}");
+    assert_eq!(sim.world.walls.len(), 1, "a refused wall is not added");
     let e: moreau::Error = BodyError::Fixed(k).into();
     assert!(e.to_string().contains("is fixed"), "{e}");
 }

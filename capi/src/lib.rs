@@ -16,7 +16,8 @@ use moreau::detection::Antagonist;
 use moreau::io::siconos::read_fc2d;
 use moreau::problem::{BlockSparse, ContactProblem, Delassus};
 use moreau::solvers::{Ordering, StopCriterion};
-use moreau::{Simulation, SolveReport, SolverKind, SolverOptions};
+use moreau::world::Interaction;
+use moreau::{BodySpec, Simulation, SolveReport, SolverKind, SolverOptions, StepSettings, Wall, World};
 
 /// What a call did.
 #[repr(C)]
@@ -356,6 +357,16 @@ pub extern "C" fn moreau_solve_options_default() -> MoreauSolveOptions {
 
 /// `o`'s settings over `now`: `tol`, `max_iter`, `anderson`, `block_sweeps`, and the criterion,
 /// the ordering and the relaxation, each NULL (0 for the relaxation) one taken from `now`.
+/// `o` over the simulation's solver settings: its NULL names (and 0 relaxation) keep them.
+fn set_solver(sim: &mut Simulation, o: &MoreauSolveOptions) -> Result<(), Failure> {
+    let solver = match o.solver.is_null() {
+        true => sim.settings.solver,
+        false => SolverKind::from_name(text(o.solver, "options.solver")?).map_err(invalid)?,
+    };
+    let options = options_over(o, &sim.settings.options)?;
+    sim.set_solver(solver, options).map_err(invalid)
+}
+
 fn options_over(o: &MoreauSolveOptions, now: &SolverOptions) -> Result<SolverOptions, Failure> {
     let invalid = |e: String| (MoreauStatus::InvalidArgument, e);
     let criterion = match o.criterion.is_null() {
@@ -453,6 +464,287 @@ pub extern "C" fn moreau_solution_free(solution: *mut MoreauSolution) {
     free(solution)
 }
 
+/// The contact law of a pair of materials (each coefficient finite and >= 0, restitution <= 1);
+/// an effect is on in the world once a law has it.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MoreauLaw {
+    /// Coulomb coefficient μ.
+    pub friction: f64,
+    /// Newton restitution coefficient, in [0, 1].
+    pub restitution: f64,
+    /// The impulse per step a bond can hold.
+    pub cohesion: f64,
+    /// η: the rolling resistance torque is at most η R r_n (needs `rotation`).
+    pub rolling_resistance: f64,
+}
+
+impl From<MoreauLaw> for Interaction {
+    fn from(l: MoreauLaw) -> Self {
+        Interaction {
+            friction: l.friction,
+            restitution: l.restitution,
+            cohesion: l.cohesion,
+            rolling_resistance: l.rolling_resistance,
+        }
+    }
+}
+
+/// What a world built in code has besides its materials; fill with
+/// `moreau_world_settings_default` and change what you need.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct MoreauWorldSettings {
+    /// Gravity on every moving body, (`gravity_x`, `gravity_y`) in m/s², when true.
+    pub gravity: bool,
+    pub gravity_x: f64,
+    pub gravity_y: f64,
+    /// Bodies turn: angles, spins, inertia and lever arms.
+    pub rotation: bool,
+    /// Walls may move with a prescribed velocity.
+    pub moving_walls: bool,
+    /// The contact law of every pair of materials (`moreau_world_set_interaction` changes a pair's).
+    pub law: MoreauLaw,
+}
+
+/// Materials, their contact laws, bodies and walls, gathered before a simulation starts; each
+/// input is checked as a scene file's is.
+pub struct MoreauWorld {
+    world: World,
+    /// The last `moreau_world_add_grains`'s body of each row.
+    grain_bodies: Vec<usize>,
+}
+
+/// Gravity (0, −9.81) on, no rotation, fixed walls, every coefficient of the law 0.
+#[no_mangle]
+pub extern "C" fn moreau_world_settings_default() -> MoreauWorldSettings {
+    MoreauWorldSettings {
+        gravity: true,
+        gravity_x: 0.0,
+        gravity_y: -9.81,
+        rotation: false,
+        moving_walls: false,
+        law: MoreauLaw::default(),
+    }
+}
+
+fn invalid(e: impl ToString) -> Failure {
+    (MoreauStatus::InvalidArgument, e.to_string())
+}
+
+/// An empty world of `count` materials, `names[k]` of density `densities[k]` (kg/m²);
+/// `settings` NULL takes `moreau_world_settings_default`'s.
+#[no_mangle]
+pub extern "C" fn moreau_world_new(
+    names: *const *const c_char,
+    densities: *const f64,
+    count: usize,
+    settings: *const MoreauWorldSettings,
+    out: *mut *mut MoreauWorld,
+) -> MoreauStatus {
+    guard(|| {
+        let s = peek(settings).copied().unwrap_or_else(|| moreau_world_settings_default());
+        let names = slice(names, count, "names")?;
+        let densities = slice(densities, count, "densities")?;
+        let materials = (names.iter().zip(densities).enumerate())
+            .map(|(k, (&name, &density))| Ok((text(name, &format!("names[{k}]"))?.to_string(), density)))
+            .collect::<Result<Vec<_>, Failure>>()?;
+        let gravity = s.gravity.then_some(moreau::DVec2::new(s.gravity_x, s.gravity_y));
+        let world = World::in_code(materials, s.law.into(), gravity, s.rotation, s.moving_walls).map_err(invalid)?;
+        give(out, MoreauWorld { world, grain_bodies: Vec::new() })
+    })
+}
+
+/// The contact law between materials `a` and `b` (by name).
+#[no_mangle]
+pub extern "C" fn moreau_world_set_interaction(
+    world: *mut MoreauWorld,
+    a: *const c_char,
+    b: *const c_char,
+    law: MoreauLaw,
+) -> MoreauStatus {
+    guard(|| {
+        let (a, b) = (text(a, "a")?, text(b, "b")?);
+        object_mut(world, "world")?.world.set_interaction(a, b, law.into()).map_err(invalid)
+    })
+}
+
+/// How a body added to a world moves at the start; NULL in its place: at rest, free.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MoreauMotion {
+    /// Velocity (m/s).
+    pub vx: f64,
+    pub vy: f64,
+    /// Spin (rad/s; needs the setting `rotation`).
+    pub spin: f64,
+    /// A fixed body never moves (no velocity, no spin).
+    pub fixed: bool,
+}
+
+/// Adds `spec` of the named material turned by `angle` and moving as `motion` says; `body` (may
+/// be NULL) gets its index.
+fn add_body(
+    world: *mut MoreauWorld,
+    mut spec: BodySpec,
+    material: *const c_char,
+    angle: f64,
+    motion: *const MoreauMotion,
+    body: *mut usize,
+) -> Result<(), Failure> {
+    let w = &mut object_mut(world, "world")?.world;
+    spec.material = w.material_named(text(material, "material")?).map_err(invalid)?;
+    let m = peek(motion).copied().unwrap_or_default();
+    (spec.angle, spec.velocity, spec.spin, spec.fixed) = (angle, moreau::DVec2::new(m.vx, m.vy), m.spin, m.fixed);
+    let index = w.add_body(&spec).map_err(invalid)?;
+    match body.is_null() {
+        true => Ok(()),
+        false => copy_out(&[index], body, 1, "body"),
+    }
+}
+
+/// Adds a disk of the named material, moving as `motion` says (NULL: at rest); `body` (may be
+/// NULL) gets its index.
+#[no_mangle]
+pub extern "C" fn moreau_world_add_disk(
+    world: *mut MoreauWorld,
+    x: f64,
+    y: f64,
+    radius: f64,
+    material: *const c_char,
+    motion: *const MoreauMotion,
+    body: *mut usize,
+) -> MoreauStatus {
+    let spec = BodySpec::disk(moreau::DVec2::new(x, y), radius, 0);
+    guard(|| add_body(world, spec, material, 0.0, motion, body))
+}
+
+/// Adds a convex polygon of `count` vertices `(x0, y0, x1, …)` relative to its centre (`x`, `y`),
+/// turned by `angle` (rad), moving as `motion` says (NULL: at rest); `body` (may be NULL) gets its
+/// index.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub extern "C" fn moreau_world_add_polygon(
+    world: *mut MoreauWorld,
+    x: f64,
+    y: f64,
+    vertices: *const f64,
+    count: usize,
+    angle: f64,
+    material: *const c_char,
+    motion: *const MoreauMotion,
+    body: *mut usize,
+) -> MoreauStatus {
+    guard(|| {
+        let xy = slice(vertices, 2 * count, "vertices")?;
+        let vertices = xy.chunks_exact(2).map(|p| moreau::DVec2::new(p[0], p[1])).collect();
+        let spec = BodySpec::polygon(moreau::DVec2::new(x, y), vertices, 0);
+        add_body(world, spec, material, angle, motion, body)
+    })
+}
+
+/// Adds a wall segment from (`ax`, `ay`) to (`bx`, `by`), moving at (`vx`, `vy`) (a velocity needs
+/// the setting `moving_walls`); `wall` (may be NULL) gets its index.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub extern "C" fn moreau_world_add_wall(
+    world: *mut MoreauWorld,
+    ax: f64,
+    ay: f64,
+    bx: f64,
+    by: f64,
+    material: *const c_char,
+    vx: f64,
+    vy: f64,
+    wall: *mut usize,
+) -> MoreauStatus {
+    guard(|| {
+        let w = &mut object_mut(world, "world")?.world;
+        let material = w.material_named(text(material, "material")?).map_err(invalid)?;
+        let mut segment = Wall::segment(moreau::DVec2::new(ax, ay), moreau::DVec2::new(bx, by), material);
+        segment.velocity = moreau::DVec2::new(vx, vy);
+        let index = w.add_wall(segment).map_err(invalid)?;
+        match wall.is_null() {
+            true => Ok(()),
+            false => copy_out(&[index], wall, 1, "wall"),
+        }
+    })
+}
+
+/// Adds the disks of a grains CSV file (a scene's `[[grains]]` columns: x, y, r and optionally
+/// vx, vy, spin, tag, material), each of `material` unless its row names one, numbered as `order`
+/// says (`auto`, `space`, `file`; NULL: `auto`). `count` gets the number of rows; each row's body
+/// is copied out with `moreau_world_copy_grain_bodies`. Nothing is added when a row is refused
+/// (the message names the file, the line and the column).
+#[no_mangle]
+pub extern "C" fn moreau_world_add_grains(
+    world: *mut MoreauWorld,
+    path: *const c_char,
+    material: *const c_char,
+    order: *const c_char,
+    count: *mut usize,
+) -> MoreauStatus {
+    use moreau::scene::grains_csv::{add_grains, GrainOrder};
+    guard(|| {
+        let handle = object_mut(world, "world")?;
+        let order = match order.is_null() {
+            true => GrainOrder::Auto,
+            false => GrainOrder::from_name(text(order, "order")?).map_err(invalid)?,
+        };
+        let (path, material) = (text(path, "path")?, text(material, "material")?);
+        let bodies =
+            add_grains(&mut handle.world, Path::new(path), material, order).or_else(|e| fail(MoreauStatus::File, e))?;
+        handle.grain_bodies = bodies;
+        match count.is_null() {
+            true => Ok(()),
+            false => copy_out(&[handle.grain_bodies.len()], count, 1, "count"),
+        }
+    })
+}
+
+/// Copies the body of each row of the last `moreau_world_add_grains` file, in the file's order,
+/// into `bodies`, which holds `len >= count`.
+#[no_mangle]
+pub extern "C" fn moreau_world_copy_grain_bodies(
+    world: *const MoreauWorld,
+    bodies: *mut usize,
+    len: usize,
+) -> MoreauStatus {
+    guard(|| copy_out(&object(world, "world")?.grain_bodies, bodies, len, "bodies"))
+}
+
+/// The number of bodies (0 for NULL).
+#[no_mangle]
+pub extern "C" fn moreau_world_body_count(world: *const MoreauWorld) -> usize {
+    peek(world).map_or(0, |w| w.world.bodies.len())
+}
+
+#[no_mangle]
+pub extern "C" fn moreau_world_free(world: *mut MoreauWorld) {
+    free(world)
+}
+
+/// A simulation of (a copy of) `world` with time step `h` (s), on the CPU: NLGS at tol 1e-4, the
+/// alert distance 5 % of the smallest grain radius; `options` (may be NULL) sets the solver as
+/// `moreau_simulation_set_solver` does. The world stays the caller's, to free or build on.
+#[no_mangle]
+pub extern "C" fn moreau_simulation_new(
+    world: *const MoreauWorld,
+    h: f64,
+    options: *const MoreauSolveOptions,
+    out: *mut *mut MoreauSimulation,
+) -> MoreauStatus {
+    guard(|| {
+        let world = object(world, "world")?.world.clone();
+        let settings = StepSettings::for_world(&world, h);
+        let mut sim = Simulation::new(world, settings).map_err(invalid)?;
+        if let Some(o) = peek(options) {
+            set_solver(&mut sim, o)?;
+        }
+        give(out, MoreauSimulation(sim, Vec::new(), Vec::new()))
+    })
+}
+
 /// The simulation a scene file describes (bodies, walls, materials, effects, step settings).
 #[no_mangle]
 pub extern "C" fn moreau_simulation_from_scene(path: *const c_char, out: *mut *mut MoreauSimulation) -> MoreauStatus {
@@ -546,15 +838,7 @@ pub extern "C" fn moreau_simulation_set_solver(
 ) -> MoreauStatus {
     guard(|| {
         let o = object(options, "options")?;
-        let sim = &mut object_mut(sim, "sim")?.0;
-        let now = &sim.settings;
-        let solver = match o.solver.is_null() {
-            true => now.solver,
-            false => SolverKind::from_name(text(o.solver, "options.solver")?)
-                .or_else(|e| fail(MoreauStatus::InvalidArgument, e))?,
-        };
-        let options = options_over(o, &now.options)?;
-        sim.set_solver(solver, options).or_else(|e| fail(MoreauStatus::InvalidArgument, e.to_string()))
+        set_solver(&mut object_mut(sim, "sim")?.0, o)
     })
 }
 
@@ -699,6 +983,12 @@ pub extern "C" fn moreau_simulation_set_velocity(
         sim.set_velocity(body, moreau::DVec2::new(vx, vy))
             .or_else(|e| fail(MoreauStatus::InvalidArgument, e.to_string()))
     })
+}
+
+/// Sets a body's spin (rad/s) from the next step on (needs the effect rotation).
+#[no_mangle]
+pub extern "C" fn moreau_simulation_set_spin(sim: *mut MoreauSimulation, body: usize, spin: f64) -> MoreauStatus {
+    guard(|| object_mut(sim, "sim")?.0.set_spin(body, spin).map_err(invalid))
 }
 
 /// Adds a force (and a torque, with the effect rotation) on a body during the next step only.
@@ -940,5 +1230,68 @@ mod tests {
         assert_eq!(moreau_simulation_body_count(sim), n + 1);
         std::fs::remove_file(path.to_str().unwrap()).ok();
         moreau_simulation_free(sim);
+    }
+
+    /// Each input of a world built through C that a scene file refuses is refused with its status
+    /// and the scene's words, and changes nothing.
+    #[test]
+    fn a_world_built_through_c_refuses_bad_input_naming_it_and_changes_nothing() {
+        let (names, densities) = ([c"grain".as_ptr(), c"grain".as_ptr()], [1000.0, 2000.0]);
+        let mut world = std::ptr::null_mut();
+        let new = |count, settings: &MoreauWorldSettings, world: &mut *mut MoreauWorld| {
+            moreau_world_new(names.as_ptr(), densities.as_ptr(), count, settings, world)
+        };
+        let defaults = moreau_world_settings_default();
+        assert_eq!(new(2, &defaults, &mut world), MoreauStatus::InvalidArgument);
+        assert_eq!(last_error(), "material \"grain\" is defined twice");
+        let bouncy = MoreauWorldSettings { law: MoreauLaw { restitution: 2.0, ..MoreauLaw::default() }, ..defaults };
+        assert_eq!(new(1, &bouncy, &mut world), MoreauStatus::InvalidArgument);
+        assert_eq!(last_error(), "contact law: restitution 2 must be <= 1");
+        let status = moreau_world_new(std::ptr::null(), densities.as_ptr(), 1, &defaults, &mut world);
+        assert_eq!((status, last_error().as_str()), (MoreauStatus::InvalidArgument, "names is NULL"));
+        assert_eq!(new(1, &defaults, &mut world), MoreauStatus::Ok, "{}", last_error());
+        let grain = c"grain".as_ptr();
+        let status = moreau_world_set_interaction(world, grain, c"wood".as_ptr(), MoreauLaw::default());
+        assert_eq!(
+            (status, last_error().as_str()),
+            (MoreauStatus::InvalidArgument, "material \"wood\" does not exist")
+        );
+        let status = moreau_world_add_wall(world, 0.0, 0.0, 0.0, 0.0, grain, 0.0, 0.0, std::ptr::null_mut());
+        assert_eq!(status, MoreauStatus::InvalidArgument);
+        assert_eq!(last_error(), "wall 0: segment endpoints must be finite and distinct");
+        let status = moreau_world_add_wall(world, 0.0, 0.0, 1.0, 0.0, grain, 0.0, 1.0, std::ptr::null_mut());
+        assert!(status == MoreauStatus::InvalidArgument && last_error().contains("moving_walls"), "{}", last_error());
+        let none = std::ptr::null_mut();
+        let status = moreau_world_add_disk(world, 0.0, 1.0, -0.1, grain, std::ptr::null(), none);
+        assert!(status == MoreauStatus::InvalidArgument && last_error().contains("radius -0.1"), "{}", last_error());
+        let two = [0.0, 0.0, 1.0, 0.0];
+        let status = moreau_world_add_polygon(world, 0.0, 1.0, two.as_ptr(), 2, 0.0, grain, std::ptr::null(), none);
+        assert!(status == MoreauStatus::InvalidArgument && last_error().contains("at least 3"), "{}", last_error());
+        // A grains file with a bad second row: the line and the column named, no grain added.
+        let path = std::env::temp_dir().join(format!("moreau_capi_grains_{}.csv", std::process::id()));
+        std::fs::write(&path, "x,y,r\n0.0,0.5,0.1\n0.3,high,0.1\n").unwrap();
+        let c_path = CString::new(path.to_str().unwrap()).unwrap();
+        let mut count = 7;
+        let status = moreau_world_add_grains(world, c_path.as_ptr(), grain, std::ptr::null(), &mut count);
+        assert_eq!((status, count), (MoreauStatus::File, 7), "{}", last_error());
+        assert!(last_error().contains("line 3, column 2 (y): \"high\" is not a number"), "{}", last_error());
+        assert_eq!(moreau_world_body_count(world), 0);
+        std::fs::remove_file(&path).ok();
+        let mut sim = std::ptr::null_mut();
+        assert_eq!(moreau_simulation_new(world, -1.0, std::ptr::null(), &mut sim), MoreauStatus::InvalidArgument);
+        assert!(last_error().contains("time step -1 must be finite and > 0"), "{}", last_error());
+        // A world without rotation: its bodies have no spin to set.
+        let mut body = 9;
+        let spinning = MoreauMotion { spin: 1.0, ..MoreauMotion::default() };
+        let status = moreau_world_add_disk(world, 0.0, 1.0, 0.1, grain, &spinning, &mut body);
+        assert!(status == MoreauStatus::InvalidArgument && last_error().contains("spin"), "{}", last_error());
+        let status = moreau_world_add_disk(world, 0.0, 1.0, 0.1, grain, std::ptr::null(), &mut body);
+        assert_eq!((status, body), (MoreauStatus::Ok, 0), "{}", last_error());
+        assert_eq!(moreau_simulation_new(world, 1e-3, std::ptr::null(), &mut sim), MoreauStatus::Ok);
+        assert_eq!(moreau_simulation_set_spin(sim, 0, 1.0), MoreauStatus::InvalidArgument);
+        assert!(last_error().contains("without the effect rotation"), "{}", last_error());
+        assert_eq!(moreau_simulation_body_count(sim), 1);
+        moreau_simulation_free(sim);
+        moreau_world_free(world);
     }
 }

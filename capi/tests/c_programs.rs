@@ -282,6 +282,67 @@ fn a_c_program_sets_the_time_step_as_the_library_does() {
     assert!(err.contains("block_sweeps 65: a block is swept at most 64 times a dispatch"), "{err}");
 }
 
+/// `examples/c/build_world.c`'s world as a scene file, with its grains file: two materials, a box,
+/// fifteen disks (the last thrown, spinning), a polygon lid, and eight grains written right to left (`auto` keeps the file's
+/// order: they lie in one row).
+fn write_build_world_scene(dir: &Path) -> (PathBuf, PathBuf) {
+    std::fs::create_dir_all(dir).unwrap();
+    let grains = dir.join("grains.csv");
+    let rows: String = (0..8).map(|k| format!("{:?},0.9,0.03\n", 0.35 - 0.1 * k as f64)).collect();
+    std::fs::write(&grains, format!("x,y,r\n{rows}")).unwrap();
+    let mut scene = String::from(
+        "effects = [\"gravity\", \"friction\", \"rotation\"]\n[time]\nstep = 1e-3\nsteps = 1\n\
+         [[material]]\nname = \"grain\"\ndensity = 2500.0\n[[material]]\nname = \"steel\"\ndensity = 7800.0\n\
+         [contact]\nfriction = 0.5\n[[interaction]]\nmaterials = [\"grain\", \"steel\"]\nfriction = 0.3\n",
+    );
+    for [a, b] in [[[-0.5, 0.0], [0.5, 0.0]], [[-0.5, 0.0], [-0.5, 1.0]], [[0.5, 0.0], [0.5, 1.0]]] {
+        scene.push_str(&format!("[[wall]]\nsegment = [{a:?}, {b:?}]\nmaterial = \"steel\"\n"));
+    }
+    for k in 0..15 {
+        let (x, y) = (0.1 * (k % 3 - 1) as f64 + 0.01 * (k / 3 % 2) as f64, 0.05 + 0.1 * (k / 3) as f64);
+        scene.push_str(&format!(
+            "[[body]]\ndisk = {{ center = [{x:?}, {y:?}], radius = 0.04 }}\nmaterial = \"grain\"\n"
+        ));
+        if k == 14 {
+            scene.push_str("velocity = [-0.3, 0.0]\nspin = 2.0\n");
+        }
+    }
+    scene.push_str(
+        "[[body]]\npolygon = { center = [0.0, 0.6], vertices = [[-0.15, -0.02], [0.15, -0.02], [0.15, 0.02], \
+         [-0.15, 0.02]] }\nmaterial = \"steel\"\nangle = 0.1\n[[grains]]\nfile = \"grains.csv\"\nmaterial = \"grain\"\n",
+    );
+    let path = dir.join("build_world.toml");
+    std::fs::write(&path, scene).unwrap();
+    (path, grains)
+}
+
+#[test]
+fn a_world_built_in_c_steps_to_the_bits_of_the_scene_file_describing_it() {
+    let dir = std::env::temp_dir().join(format!("moreau_c_world_{}", std::process::id()));
+    let (scene, grains) = write_build_world_scene(&dir);
+    let (code, out, err) = run(&compile("build_world"), &["200", grains.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let mut sim = Simulation::from_scene(&scene).unwrap();
+    sim.set_threads(1).unwrap();
+    let lid = 15;
+    for k in 0..200 {
+        assert!(sim.step().unwrap().converged);
+        if k == 0 {
+            sim.set_spin(lid, 0.5).unwrap();
+        }
+    }
+    // The C program's sum, term for term: `sum += x + y + angle`.
+    let sum = (0..sim.body_count()).fold(0.0, |s, k| s + (sim.position(k).x + sim.position(k).y + sim.angle(k)));
+    assert_eq!(field(&out, "sum").to_bits(), sum.to_bits(), "{out}: the scene's {sum:.17e}");
+    assert_eq!(field(&out, "bodies") as usize, 24, "{out}");
+    assert_eq!(field(&out, "lid") as usize, lid, "{out}");
+    assert_eq!((field(&out, "rows"), field(&out, "first_row_body")), (8.0, 16.0), "{out}");
+    assert_eq!(field(&out, "contacts") as usize, sim.contacts().len(), "{out}");
+    // The lid was set spinning: without the call the run is another.
+    assert!(sim.angle(lid) != 0.1 && sim.spin(lid) != 0.0, "{out}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn bad_input_through_c_gets_the_command_lines_message_and_a_non_zero_exit() {
     let solve = compile("solve_file");

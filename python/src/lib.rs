@@ -16,7 +16,7 @@ use moreau::io::siconos::{read_fc2d, write_fc2d, Storage};
 use moreau::problem::{BlockSparse, ContactProblem, Delassus};
 use moreau::solvers::{Ordering, StopCriterion};
 use moreau::world::Interaction;
-use moreau::{BodySpec, DVec2, Effects, Materials, SolverOptions, StepSettings, Wall};
+use moreau::{BodySpec, DVec2, SolverOptions, StepSettings, Wall};
 
 create_exception!(_moreau, MoreauError, PyException, "An error from moreau; the message names the problem.");
 
@@ -184,7 +184,7 @@ fn solve<'py>(
 struct World(moreau::World);
 
 fn material_named(world: &moreau::World, name: &str) -> PyResult<usize> {
-    world.materials.index_of(name).ok_or_else(|| error(format!("material {name:?} does not exist")))
+    world.material_named(name).map_err(error)
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -224,27 +224,8 @@ impl World {
         moving_walls: bool,
         rolling_resistance: f64,
     ) -> PyResult<Self> {
-        if materials.is_empty() {
-            return Err(error("a world needs at least one material"));
-        }
-        for (name, density) in &materials {
-            if !(density.is_finite() && *density > 0.0) {
-                return Err(error(format!("material {name:?}: density {density} must be finite and > 0")));
-            }
-        }
         let law = Interaction { friction, restitution, cohesion, rolling_resistance };
-        check_law(&law)?;
-        let effects = Effects {
-            gravity: gravity.map(vec2),
-            friction: friction > 0.0,
-            rotation,
-            restitution: restitution > 0.0,
-            cohesion: cohesion > 0.0,
-            moving_walls,
-            rolling_resistance: rolling_resistance > 0.0,
-        };
-        let (names, density) = materials.into_iter().unzip();
-        Ok(Self(moreau::World::new(effects, Materials::new(names, density, law))))
+        moreau::World::in_code(materials, law, gravity.map(vec2), rotation, moving_walls).map(Self).map_err(error)
     }
 
     /// The contact law between materials `a` and `b`.
@@ -259,15 +240,7 @@ impl World {
         rolling_resistance: f64,
     ) -> PyResult<()> {
         let law = Interaction { friction, restitution, cohesion, rolling_resistance };
-        check_law(&law)?;
-        let (a, b) = (material_named(&self.0, a)?, material_named(&self.0, b)?);
-        let e = &mut self.0.effects;
-        e.friction |= friction > 0.0;
-        e.restitution |= restitution > 0.0;
-        e.cohesion |= cohesion > 0.0;
-        e.rolling_resistance |= rolling_resistance > 0.0;
-        self.0.materials.set(a, b, law);
-        Ok(())
+        self.0.set_interaction(a, b, law).map_err(error)
     }
 
     /// Adds a disk; returns its index.
@@ -312,17 +285,9 @@ impl World {
     /// `[[grains]] order` (auto, space, file). Returns each row's body index, in the file's order.
     #[pyo3(signature = (path, material, order = "auto"))]
     fn add_grains(&mut self, path: PathBuf, material: &str, order: &str) -> PyResult<Vec<usize>> {
-        use moreau::scene::grains_csv::{read_grains, GrainOrder};
-        let material = material_named(&self.0, material)?;
+        use moreau::scene::grains_csv::{add_grains, GrainOrder};
         let order = GrainOrder::from_name(order).map_err(error)?;
-        let rows = read_grains(&path, moreau::scene::file::MAX_GENERATED, &self.0.materials.names).map_err(error)?;
-        let mut body_of = vec![0; rows.len()];
-        for n in order.numbering(&rows) {
-            body_of[n] = self
-                .add(&rows[n].body(material))
-                .map_err(|e| error(format!("{}: grain {}: {e}", path.display(), n + 1)))?;
-        }
-        Ok(body_of)
+        add_grains(&mut self.0, &path, material, order).map_err(error)
     }
 
     /// Adds a wall segment from `a` to `b` (moving at `velocity` with the effect moving_walls).
@@ -330,11 +295,7 @@ impl World {
     fn add_wall(&mut self, a: (f64, f64), b: (f64, f64), material: &str, velocity: (f64, f64)) -> PyResult<usize> {
         let mut wall = Wall::segment(vec2(a), vec2(b), material_named(&self.0, material)?);
         wall.velocity = vec2(velocity);
-        if wall.is_moving() && !self.0.effects.moving_walls {
-            return Err(error("a wall with a velocity needs the effect moving_walls"));
-        }
-        self.0.walls.push(wall);
-        Ok(self.0.walls.len() - 1)
+        self.0.add_wall(wall).map_err(error)
     }
 
     #[getter]
@@ -345,24 +306,8 @@ impl World {
 
 impl World {
     fn add(&mut self, spec: &BodySpec) -> PyResult<usize> {
-        let density = self.0.materials.density[spec.material];
-        self.0.bodies.add(spec, density).map_err(error)
+        self.0.add_body(spec).map_err(error)
     }
-}
-
-fn check_law(law: &Interaction) -> PyResult<()> {
-    let values = [
-        ("friction", law.friction),
-        ("restitution", law.restitution),
-        ("cohesion", law.cohesion),
-        ("rolling_resistance", law.rolling_resistance),
-    ];
-    for (name, value) in values {
-        if !(value.is_finite() && value >= 0.0) {
-            return Err(error(format!("{name} {value} must be finite and >= 0")));
-        }
-    }
-    Ok(())
 }
 
 /// A serialisable report as a Python dict (through JSON, so the keys are the Rust field names).

@@ -282,23 +282,14 @@ fn finite(p: &[f64]) -> bool {
 }
 
 fn check_law(law: &LawSpec) -> Result<Interaction, String> {
-    let get = |x: Option<f64>, name: &str| -> Result<f64, String> {
-        let x = x.unwrap_or(0.0);
-        if !(x.is_finite() && x >= 0.0) {
-            return Err(format!("{name} {x} must be finite and >= 0"));
-        }
-        Ok(x)
+    let law = Interaction {
+        friction: law.friction.unwrap_or(0.0),
+        restitution: law.restitution.unwrap_or(0.0),
+        cohesion: law.cohesion.unwrap_or(0.0),
+        rolling_resistance: law.rolling_resistance.unwrap_or(0.0),
     };
-    let restitution = get(law.restitution, "restitution")?;
-    if restitution > 1.0 {
-        return Err(format!("restitution {restitution} must be <= 1"));
-    }
-    Ok(Interaction {
-        friction: get(law.friction, "friction")?,
-        restitution,
-        cohesion: get(law.cohesion, "cohesion")?,
-        rolling_resistance: get(law.rolling_resistance, "rolling_resistance")?,
-    })
+    law.check()?;
+    Ok(law)
 }
 
 /// Builds a scene from its parsed file, one named part at a time; every error names the line

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use glam::DVec2;
 
-use crate::world::BodySpec;
+use crate::world::{BodySpec, World};
 
 /// One grain of the file.
 #[derive(Clone, Debug, PartialEq)]
@@ -180,6 +180,22 @@ impl GrainOrder {
             _ => (0..rows.len()).collect(),
         }
     }
+}
+
+/// Adds the disks of the grains file `path` to `world` (a host's world built in code), each of
+/// `material` unless its row names one, numbered as `order` says; returns each row's body index,
+/// in the file's order. Nothing is added when a row is refused.
+pub fn add_grains(world: &mut World, path: &Path, material: &str, order: GrainOrder) -> Result<Vec<usize>, String> {
+    let material = world.material_named(material).map_err(|e| e.to_string())?;
+    let rows = read_grains(path, super::file::MAX_GENERATED, &world.materials.names)?;
+    let mut added = world.clone();
+    let mut body_of = vec![0; rows.len()];
+    for n in order.numbering(&rows) {
+        body_of[n] =
+            added.add_body(&rows[n].body(material)).map_err(|e| format!("{}: grain {}: {e}", path.display(), n + 1))?;
+    }
+    *world = added;
+    Ok(body_of)
 }
 
 /// Whether the file's order already keeps grains together: cut into 16 runs of consecutive

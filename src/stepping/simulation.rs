@@ -194,6 +194,9 @@ pub enum StepError {
         /// What ran away.
         message: String,
     },
+    /// A world whose materials, laws or walls are out of range.
+    #[error("invalid world: {0}")]
+    World(#[from] crate::world::WorldError),
     /// The step's contact problem could not be built.
     #[error("step {step}: the contact problem is invalid: {message}")]
     Problem {
@@ -245,9 +248,9 @@ pub enum BodyError {
     /// The world has no rotation.
     #[error("the world was built without the effect rotation: body {0} has no spin")]
     NoRotation(usize),
-    /// A moving wall without the effect moving_walls.
-    #[error("a wall with a velocity needs the effect moving_walls")]
-    MovingWall,
+    /// A wall refused (its material, geometry or motion).
+    #[error(transparent)]
+    World(#[from] crate::world::WorldError),
     /// Anything else, in words.
     #[error("{0}")]
     Invalid(String),
@@ -286,6 +289,7 @@ impl Simulation {
     /// A simulation of `world` at time 0; refuses settings that cannot run.
     pub fn new(world: World, settings: StepSettings) -> Result<Self, StepError> {
         settings.validate().map_err(StepError::Settings)?;
+        world.validate()?;
         let rolling = world.effects.rolling_resistance;
         if let Some(why) = crate::solvers::rolling_refusal(rolling, settings.solver, settings.options.criterion) {
             return Err(StepError::Settings(why));
@@ -445,15 +449,9 @@ impl Simulation {
 
     /// Adds a wall; returns its index.
     pub fn add_wall(&mut self, wall: Wall) -> Result<usize, BodyError> {
-        if wall.material >= self.world.materials.len() {
-            return Err(BodyError::NoMaterial(wall.material));
-        }
-        if wall.is_moving() && !self.world.effects.moving_walls {
-            return Err(BodyError::MovingWall);
-        }
+        let index = self.world.add_wall(wall)?;
         self.extent = None;
-        self.world.walls.push(wall);
-        Ok(self.world.walls.len() - 1)
+        Ok(index)
     }
 
     /// Removes a body: the bodies after it move down one index (as in a `Vec`), its contacts

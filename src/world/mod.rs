@@ -3,12 +3,14 @@
 //! needs (angles and spins for rotation, pair tables for friction…) exists only when it is on.
 
 mod bodies;
+mod build;
 mod effects;
 mod materials;
 mod periodic;
 mod walls;
 
 pub use bodies::{Bodies, BodyShape, BodySpec, PolygonShape, SpecShape};
+pub use build::WorldError;
 pub use effects::{Effect, Effects};
 pub use materials::{Interaction, Materials};
 pub use periodic::Periodic;
