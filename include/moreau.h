@@ -396,6 +396,35 @@ enum MoreauStatus moreau_simulation_copy_contacts(const struct MoreauSimulation 
                                                   struct MoreauContact *contacts,
                                                   size_t len);
 
+// The number of walls (0 for NULL).
+size_t moreau_simulation_wall_count(const struct MoreauSimulation *sim);
+
+// Copies each wall's frame `(x, y, angle)` (its centre, which a moving wall carries along, and its
+// angle) into `frames`, which holds `len >= 3 × walls`.
+enum MoreauStatus moreau_simulation_copy_walls(const struct MoreauSimulation *sim,
+                                               double *frames,
+                                               size_t len);
+
+// Copies the grains' mean load on each wall over the last step, `(fx, fy, moment)` (N, N·m about
+// the wall's centre, counter-clockwise positive), into `loads`, which holds `len >= 3 × walls`.
+enum MoreauStatus moreau_simulation_copy_wall_loads(const struct MoreauSimulation *sim,
+                                                    double *loads,
+                                                    size_t len);
+
+// Copies the contacts' mean load on each body over the last step, `(fx, fy, moment)` about its
+// centre, into `loads`, which holds `len >= 3 × bodies`.
+enum MoreauStatus moreau_simulation_copy_body_loads(const struct MoreauSimulation *sim,
+                                                    double *loads,
+                                                    size_t len);
+
+// Sets a wall's velocity (m/s) and spin about its centre (rad/s) from the next step on: a piston
+// or a shear box driven by the host (the world needs the effect moving_walls).
+enum MoreauStatus moreau_simulation_set_wall_motion(struct MoreauSimulation *sim,
+                                                    size_t wall,
+                                                    double vx,
+                                                    double vy,
+                                                    double spin);
+
 // Sets a body's velocity from the next step on.
 enum MoreauStatus moreau_simulation_set_velocity(struct MoreauSimulation *sim,
                                                  size_t body,

@@ -138,6 +138,10 @@ fn bad_requests_are_named_errors_never_panics() {
     let e = sim.add_wall(Wall::segment(DVec2::X, DVec2::X, 0)).unwrap_err();
     assert!(e.to_string().contains("segment endpoints must be finite and distinct"), "{e}");
     assert_eq!(sim.world.walls.len(), 1, "a refused wall is not added");
+    assert_eq!(sim.set_wall_motion(1, DVec2::X, 0.0), Err(BodyError::NoWall { wall: 1, count: 1 }));
+    let e = sim.set_wall_motion(0, DVec2::ZERO, 1.0).unwrap_err();
+    assert!(e.to_string().contains("wall 0: a wall with a velocity or a spin needs the effect moving_walls"), "{e}");
+    assert!(!sim.world.walls[0].is_moving(), "a refused motion is not set");
     let e: moreau::Error = BodyError::Fixed(k).into();
     assert!(e.to_string().contains("is fixed"), "{e}");
 }

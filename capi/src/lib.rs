@@ -16,6 +16,7 @@ use moreau::detection::Antagonist;
 use moreau::io::siconos::read_fc2d;
 use moreau::problem::{BlockSparse, ContactProblem, Delassus};
 use moreau::solvers::{Ordering, StopCriterion};
+use moreau::stepping::WallLoad;
 use moreau::world::Interaction;
 use moreau::{BodySpec, Simulation, SolveReport, SolverKind, SolverOptions, StepSettings, Wall, World};
 
@@ -968,6 +969,67 @@ pub extern "C" fn moreau_simulation_copy_contacts(
             .collect();
         copy_out(&list, contacts, len, "contacts")
     })
+}
+
+/// The number of walls (0 for NULL).
+#[no_mangle]
+pub extern "C" fn moreau_simulation_wall_count(sim: *const MoreauSimulation) -> usize {
+    peek(sim).map_or(0, |s| s.0.world.walls.len())
+}
+
+/// Copies each wall's frame `(x, y, angle)` (its centre, which a moving wall carries along, and its
+/// angle) into `frames`, which holds `len >= 3 × walls`.
+#[no_mangle]
+pub extern "C" fn moreau_simulation_copy_walls(
+    sim: *const MoreauSimulation,
+    frames: *mut f64,
+    len: usize,
+) -> MoreauStatus {
+    guard(|| {
+        let walls = &object(sim, "sim")?.0.world.walls;
+        let flat: Vec<f64> = walls.iter().flat_map(|w| [w.center.x, w.center.y, w.angle]).collect();
+        copy_out(&flat, frames, len, "frames")
+    })
+}
+
+fn copy_loads(loads: &[WallLoad], out: *mut f64, len: usize) -> Result<(), Failure> {
+    let flat: Vec<f64> = loads.iter().flat_map(|l| [l.force[0], l.force[1], l.moment]).collect();
+    copy_out(&flat, out, len, "loads")
+}
+
+/// Copies the grains' mean load on each wall over the last step, `(fx, fy, moment)` (N, N·m about
+/// the wall's centre, counter-clockwise positive), into `loads`, which holds `len >= 3 × walls`.
+#[no_mangle]
+pub extern "C" fn moreau_simulation_copy_wall_loads(
+    sim: *const MoreauSimulation,
+    loads: *mut f64,
+    len: usize,
+) -> MoreauStatus {
+    guard(|| copy_loads(&object(sim, "sim")?.0.wall_loads(), loads, len))
+}
+
+/// Copies the contacts' mean load on each body over the last step, `(fx, fy, moment)` about its
+/// centre, into `loads`, which holds `len >= 3 × bodies`.
+#[no_mangle]
+pub extern "C" fn moreau_simulation_copy_body_loads(
+    sim: *const MoreauSimulation,
+    loads: *mut f64,
+    len: usize,
+) -> MoreauStatus {
+    guard(|| copy_loads(&object(sim, "sim")?.0.body_loads(), loads, len))
+}
+
+/// Sets a wall's velocity (m/s) and spin about its centre (rad/s) from the next step on: a piston
+/// or a shear box driven by the host (the world needs the effect moving_walls).
+#[no_mangle]
+pub extern "C" fn moreau_simulation_set_wall_motion(
+    sim: *mut MoreauSimulation,
+    wall: usize,
+    vx: f64,
+    vy: f64,
+    spin: f64,
+) -> MoreauStatus {
+    guard(|| object_mut(sim, "sim")?.0.set_wall_motion(wall, moreau::DVec2::new(vx, vy), spin).map_err(invalid))
 }
 
 /// Sets a body's velocity from the next step on.

@@ -343,6 +343,55 @@ fn a_world_built_in_c_steps_to_the_bits_of_the_scene_file_describing_it() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// `examples/c/push_grains.c`: a blade driven at 0.5 m/s through 40 grains for 300 steps, then
+/// stopped for 1,200 (the grains at rest from step 1,400 on). The C program's loads are the library's to the bit, the blade went where it
+/// was driven, and the grains at rest hang their weight on the walls.
+#[test]
+fn a_c_program_drives_a_blade_through_grains_and_reads_the_loads_the_library_gives() {
+    let (code, out, err) = run(&compile("push_grains"), &["300", "1200"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let law = moreau::world::Interaction { friction: 0.4, ..Default::default() };
+    let gravity = Some(moreau::DVec2::new(0.0, -9.81));
+    let mut world = moreau::World::in_code(vec![("sand".into(), 2500.0)], law, gravity, false, true).unwrap();
+    for [ax, ay, bx, by] in
+        [[-1.0, 0.0, 1.0, 0.0], [-1.0, 0.0, -1.0, 1.0], [1.0, 0.0, 1.0, 1.0], [-0.8, 0.0, -0.8, 0.4]]
+    {
+        world.add_wall(moreau::Wall::segment(moreau::DVec2::new(ax, ay), moreau::DVec2::new(bx, by), 0)).unwrap();
+    }
+    for k in 0..40 {
+        let (x, y) = (-0.7 + 0.1 * (k % 10) as f64 + 0.02 * (k / 10 % 2) as f64, 0.04 + 0.081 * (k / 10) as f64);
+        world.add_body(&moreau::BodySpec::disk(moreau::DVec2::new(x, y), 0.04, 0)).unwrap();
+    }
+    let settings = moreau::StepSettings::for_world(&world, 1e-3);
+    let mut sim = Simulation::new(world, settings).unwrap();
+    sim.set_threads(1).unwrap();
+    let blade = 3;
+    sim.set_wall_motion(blade, moreau::DVec2::new(0.5, 0.0), 0.0).unwrap();
+    let mut drag = 0.0;
+    for k in 0..1500 {
+        if k == 300 {
+            sim.set_wall_motion(blade, moreau::DVec2::ZERO, 0.0).unwrap();
+        }
+        assert!(sim.step().unwrap().converged);
+        drag -= if k < 300 { sim.wall_loads()[blade].force[0] / 300.0 } else { 0.0 };
+    }
+    let walls = sim.wall_loads();
+    let walls_fy = walls.iter().fold(0.0, |s, l| s + l.force[1]);
+    assert_eq!(field(&out, "mean_drag").to_bits(), drag.to_bits(), "{out}: the library's {drag:.17e}");
+    assert_eq!(field(&out, "walls_fy").to_bits(), walls_fy.to_bits(), "{out}: the library's {walls_fy:.17e}");
+    assert!((field(&out, "blade_x") + 0.65).abs() < 1e-9, "{out}: 0.3 s at 0.5 m/s from x = -0.8");
+    assert!(drag > 0.0, "{out}: the grains resist the blade");
+    // At rest the walls carry the grains' weight, and the grains feel the walls' reaction.
+    let weight = 9.81 * (0..40).map(|k| 1.0 / sim.world.bodies.inv_mass[k]).sum::<f64>();
+    let walls_fx = walls.iter().fold(0.0, |s, l| s + l.force[0]);
+    assert!((walls_fy + weight).abs() < 1e-6 * weight && walls_fx.abs() < 1e-6 * weight, "{out}: weight {weight}");
+    let bodies = sim.body_loads();
+    let grains_fy = bodies.iter().fold(0.0, |s, l| s + l.force[1]);
+    assert!((grains_fy + walls_fy).abs() < 1e-9 * weight, "{out}: the grains' own contacts cancel");
+    assert!((field(&out, "grains_fy") - grains_fy).abs() < 1e-9 * weight, "{out}");
+    assert!((0..40).all(|k| bodies[k] == sim.body_load(k)), "one pass gives each body's own sums");
+}
+
 #[test]
 fn bad_input_through_c_gets_the_command_lines_message_and_a_non_zero_exit() {
     let solve = compile("solve_file");

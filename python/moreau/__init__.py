@@ -374,6 +374,36 @@ class Simulation:
             "status": _from(c["status"], "<u4"),
         }
 
+    def wall_loads(self) -> Dict[str, np.ndarray]:
+        """The grains' mean load on each wall over the last step: ``force`` (W × 2, N) and
+        ``moment`` about the wall's centre (W, N·m, counter-clockwise positive)."""
+        return self._loads(self._inner.wall_loads())
+
+    def body_loads(self) -> Dict[str, np.ndarray]:
+        """The contacts' mean load on each body over the last step: ``force`` (N × 2) and
+        ``moment`` about the body's centre (N)."""
+        return self._loads(self._inner.body_loads())
+
+    @staticmethod
+    def _loads(d: Dict[str, bytes]) -> Dict[str, np.ndarray]:
+        return {"force": _from(d["force"], "<f8", 2), "moment": _from(d["moment"], "<f8")}
+
+    def walls(self) -> Dict[str, np.ndarray]:
+        """Every wall's frame and motion: ``center`` and ``velocity`` (W × 2), ``angle`` and
+        ``spin`` (W)."""
+        w = self._inner.walls()
+        return {
+            "center": _from(w["center"], "<f8", 2),
+            "angle": _from(w["angle"], "<f8"),
+            "velocity": _from(w["velocity"], "<f8", 2),
+            "spin": _from(w["spin"], "<f8"),
+        }
+
+    def set_wall_motion(self, wall: int, velocity: Sequence[float], spin: float = 0.0) -> None:
+        """A wall's velocity (m/s) and spin about its centre (rad/s) from the next step on: a
+        piston or a shear box driven by the host (the world needs ``moving_walls``)."""
+        self._inner.set_wall_motion(wall, tuple(velocity), spin)
+
     def material(self, name: str) -> int:
         return self._inner.material(name)
 

@@ -310,6 +310,13 @@ impl World {
     }
 }
 
+fn loads_dict<'py>(py: Python<'py>, loads: &[moreau::stepping::WallLoad]) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("force", to_bytes(py, &loads.iter().flat_map(|l| l.force).collect::<Vec<f64>>()))?;
+    d.set_item("moment", to_bytes(py, &loads.iter().map(|l| l.moment).collect::<Vec<f64>>()))?;
+    Ok(d)
+}
+
 /// A serialisable report as a Python dict (through JSON, so the keys are the Rust field names).
 fn json_dict<'py>(py: Python<'py>, value: &impl serde::Serialize) -> PyResult<Bound<'py, PyDict>> {
     let json = serde_json::to_string(value).map_err(error)?;
@@ -509,6 +516,34 @@ impl Simulation {
         d.set_item("gap", to_bytes(py, &c.iter().map(|c| c.contact.gap).collect::<Vec<f64>>()))?;
         d.set_item("status", to_bytes(py, &c.iter().map(|c| c.status.code()).collect::<Vec<u32>>()))?;
         Ok(d)
+    }
+
+    /// The last step's mean load on each wall (`wall_loads`) or body (`body_loads`): a dict of
+    /// bytes (force: 2 float64, moment about the centre: float64).
+    fn wall_loads<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        loads_dict(py, &self.0.wall_loads())
+    }
+
+    fn body_loads<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        loads_dict(py, &self.0.body_loads())
+    }
+
+    /// Every wall's frame and motion: a dict of bytes (center, velocity: 2 float64; angle, spin:
+    /// float64).
+    fn walls<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let w = &self.0.world.walls;
+        let d = PyDict::new(py);
+        d.set_item("center", to_bytes(py, &w.iter().flat_map(|w| w.center.to_array()).collect::<Vec<f64>>()))?;
+        d.set_item("angle", to_bytes(py, &w.iter().map(|w| w.angle).collect::<Vec<f64>>()))?;
+        d.set_item("velocity", to_bytes(py, &w.iter().flat_map(|w| w.velocity.to_array()).collect::<Vec<f64>>()))?;
+        d.set_item("spin", to_bytes(py, &w.iter().map(|w| w.spin).collect::<Vec<f64>>()))?;
+        Ok(d)
+    }
+
+    /// A wall's velocity and spin from the next step on (the effect moving_walls).
+    #[pyo3(signature = (wall, velocity, spin = 0.0))]
+    fn set_wall_motion(&mut self, wall: usize, velocity: (f64, f64), spin: f64) -> PyResult<()> {
+        self.0.set_wall_motion(wall, vec2(velocity), spin).map_err(error)
     }
 
     fn set_velocity(&mut self, body: usize, velocity: (f64, f64)) -> PyResult<()> {

@@ -308,6 +308,43 @@ def test_a_world_built_from_python_lets_a_grain_land_and_rest():
     assert focused.error <= 1e-10 and any(n.startswith("focused sweeps: ") for n in focused.notes), focused.notes
 
 
+def test_a_stack_hangs_its_weight_on_the_floor_and_a_driven_wall_goes_where_python_sends_it():
+    world = moreau.World([("glass", 2500.0)], friction=0.3, gravity=(0.0, -9.81), moving_walls=True)
+    world.add_wall((-1.0, 0.0), (1.0, 0.0), "glass")
+    world.add_wall((0.5, 0.0), (0.5, 0.5), "glass")
+    for k in range(3):
+        world.add_disk((0.0, 0.05 + 0.1 * k), 0.05, "glass")
+    sim = moreau.Simulation(world, h=1e-3)
+    for _ in range(100):
+        assert sim.step()["converged"]
+    weight = 3 * 2500.0 * np.pi * 0.05**2 * 9.81
+    walls, bodies = sim.wall_loads(), sim.body_loads()
+    assert walls["force"].shape == (2, 2) and walls["moment"].shape == (2,) and bodies["force"].shape == (3, 2)
+    np.testing.assert_allclose(walls["force"][0], [0.0, -weight], atol=1e-6 * weight)
+    np.testing.assert_allclose(walls["force"][1], [0.0, 0.0], atol=1e-12)
+    # At rest the contacts on each disk hold up its own weight.
+    np.testing.assert_allclose(bodies["force"][:, 1], weight / 3, rtol=1e-6)
+    np.testing.assert_allclose(bodies["force"].sum(axis=0), -walls["force"].sum(axis=0), atol=1e-9 * weight)
+    # The side wall sent left at 1 m/s for 0.5 s, then stopped.
+    sim.set_wall_motion(1, (-1.0, 0.0))
+    for k in range(600):
+        if k == 500:
+            sim.set_wall_motion(1, (0.0, 0.0))
+        sim.step()
+    w = sim.walls()
+    np.testing.assert_allclose(w["center"][1], [0.0, 0.25], atol=1e-12)
+    assert w["velocity"][1].tolist() == [0.0, 0.0] and w["spin"].tolist() == [0.0, 0.0]
+    # Pushed past where the wall stopped (they slide on after it), the stack in one column.
+    x = sim.positions[:, 0]
+    assert x.max() < -0.05 + 1e-6 and np.ptp(x) < 1e-6, x
+    with pytest.raises(moreau.MoreauError, match="wall 2 does not exist"):
+        sim.set_wall_motion(2, (1.0, 0.0))
+    world = moreau.World([("glass", 1.0)])
+    world.add_wall((-1.0, 0.0), (1.0, 0.0), "glass")
+    with pytest.raises(moreau.MoreauError, match="wall 0: a wall with a velocity or a spin needs the effect moving_walls"):
+        moreau.Simulation(world, h=1e-3).set_wall_motion(0, (1.0, 0.0))
+
+
 def test_a_shuffled_packing_read_from_python_is_numbered_in_rows_and_each_row_finds_its_body(tmp_path):
     # 40 x 10 disks touching on a square lattice, written shuffled.
     rows = [(0.05 + 0.1 * j, 0.05 + 0.1 * i) for i in range(10) for j in range(40)]

@@ -100,8 +100,8 @@ impl Simulation {
     }
 }
 
-/// The load the grains put on one wall over the last step: mean force and its moment about the
-/// wall's centre (counter-clockwise positive).
+/// The load the grains put on one wall (or body) over the last step: mean force and its moment
+/// about the wall's (or body's) centre, counter-clockwise positive.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct WallLoad {
     /// Mean force on the wall (N).
@@ -123,6 +123,22 @@ impl Simulation {
                 load.force[0] += on_wall.x;
                 load.force[1] += on_wall.y;
                 load.moment += arm.perp_dot(on_wall);
+            }
+        }
+        loads
+    }
+
+    /// [`Self::body_load`] of every body, in one pass over the contacts (the same sums, in the
+    /// same order).
+    pub fn body_loads(&self) -> Vec<WallLoad> {
+        let mut loads = vec![WallLoad::default(); self.world.bodies.len()];
+        let h = self.settings.h;
+        for c in &self.contacts {
+            for (k, on_body, image) in c.loaded_bodies(h) {
+                let load = &mut loads[k];
+                load.force[0] += on_body.x;
+                load.force[1] += on_body.y;
+                load.moment += (c.contact.point - self.world.bodies.position[k] - image).perp_dot(on_body);
             }
         }
         loads

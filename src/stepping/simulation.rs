@@ -248,6 +248,14 @@ pub enum BodyError {
     /// The world has no rotation.
     #[error("the world was built without the effect rotation: body {0} has no spin")]
     NoRotation(usize),
+    /// No such wall.
+    #[error("wall {wall} does not exist (the simulation has {count} walls)")]
+    NoWall {
+        /// The index asked for.
+        wall: usize,
+        /// Walls there are.
+        count: usize,
+    },
     /// A wall refused (its material, geometry or motion).
     #[error(transparent)]
     World(#[from] crate::world::WorldError),
@@ -452,6 +460,17 @@ impl Simulation {
         let index = self.world.add_wall(wall)?;
         self.extent = None;
         Ok(index)
+    }
+
+    /// Sets a wall's velocity (m/s) and spin about its centre (rad/s) from the next step on: a
+    /// host driving a piston or a shear box (the world needs the effect moving_walls).
+    pub fn set_wall_motion(&mut self, wall: usize, velocity: DVec2, spin: f64) -> Result<(), BodyError> {
+        let count = self.world.walls.len();
+        let w = self.world.walls.get(wall).ok_or(BodyError::NoWall { wall, count })?;
+        let moved = Wall { velocity, spin, ..w.clone() };
+        self.world.check_wall(wall, &moved)?;
+        self.world.walls[wall] = moved;
+        Ok(())
     }
 
     /// Removes a body: the bodies after it move down one index (as in a `Vec`), its contacts

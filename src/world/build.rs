@@ -159,7 +159,9 @@ impl World {
         Ok(index)
     }
 
-    fn check_wall(&self, index: usize, wall: &Wall) -> Result<(), WorldError> {
+    /// Whether `wall` may stand as wall `index` of this world: its material, its motion (the
+    /// effect moving_walls) and its geometry.
+    pub(crate) fn check_wall(&self, index: usize, wall: &Wall) -> Result<(), WorldError> {
         let refuse = |message: String| Err(WorldError::Wall { index, message });
         if wall.material >= self.materials.len() {
             return refuse(format!("material {} does not exist ({} materials)", wall.material, self.materials.len()));
