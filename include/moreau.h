@@ -174,6 +174,12 @@ typedef struct MoreauMeasures {
   double stress_xx;
   double stress_yy;
   double stress_xy;
+  // Fabric tensor ⟨n ⊗ n⟩ over active contacts between grains (trace 1; 0 without such a contact).
+  double fabric_xx;
+  double fabric_yy;
+  double fabric_xy;
+  // The contact directions' anisotropy 2 (λ₁ − λ₂), in [0, 2].
+  double anisotropy;
 } MoreauMeasures;
 
 #ifdef __cplusplus

@@ -202,6 +202,34 @@ fn removing_a_body_renumbers_the_rest_and_keeps_their_warm_start() {
     assert_eq!(sim.remove_body(2), Err(BodyError::NoBody { body: 2, count: 2 }));
 }
 
+/// Two disks between walls on the floor and one on top, no friction: the top disk rests on the two
+/// lower ones along ±60°, the lower ones are pushed apart and lean on the walls, so the contacts
+/// between grains that carry a force are the two at ±60°: F = diag(1/4, 3/4), anisotropy 1.
+#[test]
+fn a_frictionless_pyramid_has_the_fabric_of_its_two_sixty_degree_contacts() {
+    let r = 0.1;
+    let mut sim = disk_on_floor(0.0, true, false);
+    sim.world.bodies.position[0].x = -r;
+    for (a, b) in [((-2.0 * r, 0.0), (-2.0 * r, 1.0)), ((2.0 * r, 0.0), (2.0 * r, 1.0))] {
+        sim.add_wall(Wall::segment(DVec2::new(a.0, a.1), DVec2::new(b.0, b.1), 0)).unwrap();
+    }
+    sim.add_body(&BodySpec::disk(DVec2::new(r, r), r, 0)).unwrap();
+    sim.add_body(&BodySpec::disk(DVec2::new(0.0, r + 3f64.sqrt() * r), r, 0)).unwrap();
+    sim.settings.options.tol = 1e-10;
+    for _ in 0..50 {
+        assert!(sim.step().unwrap().converged);
+    }
+    let m = sim.measures();
+    let close = |x: f64, y: f64| (x - y).abs() < 1e-6;
+    assert!(close(m.fabric_xx, 0.25) && close(m.fabric_yy, 0.75) && close(m.fabric_xy, 0.0), "{m:?}");
+    assert!(close(m.anisotropy, 1.0), "{m:?}");
+    // Without contacts between grains (one grain left) the fabric is zero, not undefined.
+    sim.remove_body(2).unwrap();
+    sim.remove_body(1).unwrap();
+    sim.step().unwrap();
+    assert_eq!((sim.measures().fabric_xx, sim.measures().anisotropy), (0.0, 0.0));
+}
+
 #[test]
 fn a_resting_column_has_the_packing_coordination_and_stress_of_statics() {
     // k disks (radius r, mass m) stacked in a box of width W on a floor at y = 0: the floor
@@ -228,6 +256,8 @@ fn a_resting_column_has_the_packing_coordination_and_stress_of_statics() {
     assert!((m.packing_fraction - phi).abs() < 1e-6, "φ {} vs {phi}", m.packing_fraction);
     // Bottom and middle disks carry two contacts each; the top one, one: a rattler.
     assert_eq!((m.coordination, m.rattlers), (2.0, 1), "{m:?}");
+    // The grains touch along the vertical only: one direction, the largest anisotropy.
+    assert_eq!((m.fabric_xx, m.fabric_yy, m.fabric_xy, m.anisotropy), (0.0, 1.0, 0.0, 2.0), "{m:?}");
     // The floor carries the column's weight; the side walls nothing.
     let loads = sim.wall_loads();
     let weight = k as f64 * mass * 9.81;

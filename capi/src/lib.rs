@@ -142,6 +142,12 @@ pub struct MoreauMeasures {
     pub stress_xx: f64,
     pub stress_yy: f64,
     pub stress_xy: f64,
+    /// Fabric tensor ⟨n ⊗ n⟩ over active contacts between grains (trace 1; 0 without such a contact).
+    pub fabric_xx: f64,
+    pub fabric_yy: f64,
+    pub fabric_xy: f64,
+    /// The contact directions' anisotropy 2 (λ₁ − λ₂), in [0, 2].
+    pub anisotropy: f64,
 }
 
 /// One contact of the last step.
@@ -1124,6 +1130,10 @@ pub extern "C" fn moreau_simulation_measures(sim: *const MoreauSimulation, out: 
             stress_xx: m.stress_xx,
             stress_yy: m.stress_yy,
             stress_xy: m.stress_xy,
+            fabric_xx: m.fabric_xx,
+            fabric_yy: m.fabric_yy,
+            fabric_xy: m.fabric_xy,
+            anisotropy: m.anisotropy,
         };
         copy_out(&[measures], out, 1, "out")
     })

@@ -205,6 +205,8 @@ fn a_c_program_restarts_a_scene_from_its_checkpoint_as_the_library_steps_it() {
     let straight = out.lines().find(|l| l.starts_with("straight:")).unwrap();
     assert_eq!(field(straight, "packing_fraction"), m.packing_fraction, "{out}");
     assert_eq!(field(straight, "stress_yy"), m.stress_yy, "{out}");
+    assert_eq!(field(straight, "anisotropy"), m.anisotropy, "{out}");
+    assert!(m.anisotropy > 0.0, "a pile's contacts lean towards the vertical");
     assert_eq!(field(straight, "rattlers") as usize, m.rattlers, "{out}");
     assert_eq!(field(&out, "body") as usize, sim.body_count(), "{out}");
     assert_eq!(field(&out, "of") as usize, sim.body_count() + 1, "{out}");

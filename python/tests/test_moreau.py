@@ -157,7 +157,7 @@ def test_a_scene_stepped_from_python_matches_the_command_line_step_by_step(tmp_p
         assert report["max_penetration"] == pytest.approx(float(row["max_penetration"]), rel=1e-12, abs=1e-300)
         assert report["velocity_scale"] == pytest.approx(float(row["velocity_scale"]), rel=1e-12, abs=1e-300)
         measures = sim.measures()
-        for name in ("packing_fraction", "coordination", "stress_yy"):
+        for name in ("packing_fraction", "coordination", "stress_yy", "fabric_xy", "anisotropy"):
             assert measures[name] == pytest.approx(float(row[name]), rel=1e-12, abs=1e-300), name
     assert sim.steps_done == steps and sim.time == pytest.approx(steps * 2e-3)
     # The command line's state after the last step, from its checkpoint: the same bits.

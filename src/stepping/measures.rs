@@ -13,6 +13,10 @@
 //!   the grain's centre, summed over the moving grains of each contact (for two grains, the
 //!   branch vector between their centres); `A` as for the packing fraction. The symmetric part
 //!   is reported: σxx, σyy, σxy.
+//! * **Fabric** (Satake's tensor, as Radjai's studies use it): `F = ⟨n ⊗ n⟩` over the active
+//!   contacts between two moving grains (walls and fixed bodies left out), trace 1: ½ I for
+//!   contact directions spread evenly. Its **anisotropy** `a = 2 (λ₁ − λ₂)` is the `a` of the
+//!   directions' density `(1 + a cos 2(θ − θ_F)) / 2π`: 0 isotropic, 2 for one direction.
 
 use glam::DVec2;
 use serde::Serialize;
@@ -35,6 +39,15 @@ pub struct Measures {
     pub stress_yy: f64,
     /// Mean stress σxy.
     pub stress_xy: f64,
+    /// Fabric tensor F = ⟨n ⊗ n⟩ over active contacts between grains: Fxx (Fyy = 1 − Fxx; all
+    /// three 0 without such a contact).
+    pub fabric_xx: f64,
+    /// Fyy.
+    pub fabric_yy: f64,
+    /// Fxy.
+    pub fabric_xy: f64,
+    /// The contact directions' anisotropy 2 (λ₁ − λ₂) of F, in [0, 2].
+    pub anisotropy: f64,
 }
 
 impl Simulation {
@@ -59,6 +72,7 @@ impl Simulation {
                 sum[2] += 0.5 * (l.x * f.y + l.y * f.x);
             }
         }
+        let fabric = self.fabric();
         let carrying: Vec<usize> = grains.iter().map(|&k| active[k]).filter(|&a| a >= 2).collect();
         let per_area = |x: f64| if area > 0.0 { x / area } else { 0.0 };
         Measures {
@@ -72,6 +86,29 @@ impl Simulation {
             stress_xx: per_area(sum[0]),
             stress_yy: per_area(sum[1]),
             stress_xy: per_area(sum[2]),
+            fabric_xx: fabric[0],
+            fabric_yy: fabric[1],
+            fabric_xy: fabric[2],
+            anisotropy: 2.0 * ((fabric[0] - fabric[1]).powi(2) + 4.0 * fabric[2] * fabric[2]).sqrt(),
+        }
+    }
+
+    /// `[Fxx, Fyy, Fxy]` over the active contacts between two moving grains (zeros without one).
+    fn fabric(&self) -> [f64; 3] {
+        let moving = |k: usize| self.world.bodies.inv_mass[k] > 0.0;
+        let (mut sum, mut count) = ([0.0; 3], 0usize);
+        for c in self.contacts.iter().filter(|c| c.impulse[0] > 0.0 && moving(c.contact.i)) {
+            if let Antagonist::Body(j) = c.contact.other {
+                if moving(j) {
+                    let n = c.contact.normal;
+                    sum = [sum[0] + n.x * n.x, sum[1] + n.y * n.y, sum[2] + n.x * n.y];
+                    count += 1;
+                }
+            }
+        }
+        match count {
+            0 => [0.0; 3],
+            n => sum.map(|x| x / n as f64),
         }
     }
 
