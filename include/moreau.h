@@ -27,6 +27,20 @@ typedef enum MoreauStatus {
   MOREAU_STATUS_PANIC = 6,
 } MoreauStatus;
 
+// Why a solve stopped.
+typedef enum MoreauStop {
+  // The judged error is at most the tolerance (also a step with nothing to solve).
+  MOREAU_STOP_CONVERGED = 0,
+  // The iteration budget ran out first.
+  MOREAU_STOP_MAX_ITER = 1,
+  // The error stopped improving (on a GPU: the f32 floor of the problem).
+  MOREAU_STOP_STALLED = 2,
+  // The iterate became non-finite.
+  MOREAU_STOP_DIVERGED = 3,
+  // The method broke down (a zero curvature in a conjugate gradient).
+  MOREAU_STOP_BREAKDOWN = 4,
+} MoreauStop;
+
 // A contact problem `u = W r + q`, `μ` per contact.
 typedef struct MoreauProblem MoreauProblem;
 
@@ -143,6 +157,24 @@ typedef struct MoreauStepReport {
   // `tol` times it. Under `step-velocity` one step of the applied acceleration (g h), else the
   // largest free velocity of the step's contacts.
   double velocity_scale;
+  // Why the step's solve stopped.
+  enum MoreauStop stop;
+  // Contacts whose impulse came from the last step (the warm start).
+  size_t warm_started;
+  // Contacts detection missed at the step's start and found overlapping at its end.
+  size_t missed;
+  // Contacts the position projection moved back to their surface.
+  size_t projected;
+  // Energies at the end of the step (J): kinetic, and potential in gravity.
+  double kinetic_energy;
+  double potential_energy;
+  // Of `seconds`: detection, the solve, the position projection.
+  double detection_seconds;
+  double solve_seconds;
+  double projection_seconds;
+  // GPU dispatches and bytes moved between CPU and GPU (0 on the CPU).
+  uint64_t gpu_dispatches;
+  uint64_t gpu_bytes;
 } MoreauStepReport;
 
 // One contact of the last step.

@@ -15,7 +15,7 @@ use moreau::backend::{solve_by_name, DeviceChoice};
 use moreau::detection::Antagonist;
 use moreau::io::siconos::read_fc2d;
 use moreau::problem::{BlockSparse, ContactProblem, Delassus};
-use moreau::solvers::{Ordering, StopCriterion};
+use moreau::solvers::{Ordering, StopCriterion, StopReason};
 use moreau::stepping::WallLoad;
 use moreau::world::Interaction;
 use moreau::{BodySpec, Simulation, SolveReport, SolverKind, SolverOptions, StepSettings, Wall, World};
@@ -126,6 +126,53 @@ pub struct MoreauStepReport {
     /// `tol` times it. Under `step-velocity` one step of the applied acceleration (g h), else the
     /// largest free velocity of the step's contacts.
     pub velocity_scale: f64,
+    /// Why the step's solve stopped.
+    pub stop: MoreauStop,
+    /// Contacts whose impulse came from the last step (the warm start).
+    pub warm_started: usize,
+    /// Contacts detection missed at the step's start and found overlapping at its end.
+    pub missed: usize,
+    /// Contacts the position projection moved back to their surface.
+    pub projected: usize,
+    /// Energies at the end of the step (J): kinetic, and potential in gravity.
+    pub kinetic_energy: f64,
+    pub potential_energy: f64,
+    /// Of `seconds`: detection, the solve, the position projection.
+    pub detection_seconds: f64,
+    pub solve_seconds: f64,
+    pub projection_seconds: f64,
+    /// GPU dispatches and bytes moved between CPU and GPU (0 on the CPU).
+    pub gpu_dispatches: u64,
+    pub gpu_bytes: u64,
+}
+
+/// Why a solve stopped.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MoreauStop {
+    /// The judged error is at most the tolerance (also a step with nothing to solve).
+    #[default]
+    Converged = 0,
+    /// The iteration budget ran out first.
+    MaxIter = 1,
+    /// The error stopped improving (on a GPU: the f32 floor of the problem).
+    Stalled = 2,
+    /// The iterate became non-finite.
+    Diverged = 3,
+    /// The method broke down (a zero curvature in a conjugate gradient).
+    Breakdown = 4,
+}
+
+impl From<StopReason> for MoreauStop {
+    fn from(s: StopReason) -> Self {
+        match s {
+            StopReason::Converged => MoreauStop::Converged,
+            StopReason::MaxIter => MoreauStop::MaxIter,
+            StopReason::Stalled => MoreauStop::Stalled,
+            StopReason::Diverged => MoreauStop::Diverged,
+            StopReason::Breakdown => MoreauStop::Breakdown,
+        }
+    }
 }
 
 /// The granular measures of the current state (definitions in README, "Simulating a scene").
@@ -879,6 +926,17 @@ pub extern "C" fn moreau_simulation_step(sim: *mut MoreauSimulation, report: *mu
             seconds: r.seconds,
             gpu_iterations: r.gpu_iterations,
             velocity_scale: r.velocity_scale,
+            stop: r.stop.into(),
+            warm_started: r.warm_started,
+            missed: r.missed,
+            projected: r.projected,
+            kinetic_energy: r.kinetic_energy,
+            potential_energy: r.potential_energy,
+            detection_seconds: r.detection_seconds,
+            solve_seconds: r.solve_seconds,
+            projection_seconds: r.projection_seconds,
+            gpu_dispatches: r.gpu_dispatches,
+            gpu_bytes: r.gpu_bytes,
         };
         copy_out(&[out], report, 1, "report")
     })
@@ -1365,5 +1423,25 @@ mod tests {
         assert_eq!(moreau_simulation_body_count(sim), 1);
         moreau_simulation_free(sim);
         moreau_world_free(world);
+    }
+
+    /// A step whose solve runs out of iterations says so in its report, with the other fields.
+    #[test]
+    fn a_step_out_of_iterations_reports_max_iter_through_c() {
+        let mut sim = std::ptr::null_mut();
+        assert_eq!(moreau_simulation_from_scene(c"../scenes/pile.toml".as_ptr(), &mut sim), MoreauStatus::Ok);
+        let mut options = MoreauSolveOptions { max_iter: 1, tol: 1e-12, ..moreau_solve_options_default() };
+        options.solver = std::ptr::null();
+        assert_eq!(moreau_simulation_set_solver(sim, &options), MoreauStatus::Ok, "{}", last_error());
+        let mut report = MoreauStepReport::default();
+        let mut stops = Vec::new();
+        for _ in 0..40 {
+            assert_eq!(moreau_simulation_step(sim, &mut report), MoreauStatus::Ok, "{}", last_error());
+            stops.push((report.stop, report.converged));
+        }
+        assert!(stops.contains(&(MoreauStop::MaxIter, false)), "{stops:?}");
+        assert!(stops.iter().all(|&(stop, converged)| converged == (stop == MoreauStop::Converged)), "{stops:?}");
+        assert!(report.contacts > 0 && report.kinetic_energy > 0.0 && report.potential_energy != 0.0, "{report:?}");
+        moreau_simulation_free(sim);
     }
 }

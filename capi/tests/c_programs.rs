@@ -178,8 +178,18 @@ fn a_c_program_steps_a_pile_as_the_library_does() {
         assert!(r.converged);
         last = Some(r);
     }
-    let scale = last.unwrap().velocity_scale;
+    let last = last.unwrap();
+    let scale = last.velocity_scale;
     assert!((field(&out, "velocity_scale") - scale).abs() <= 1e-8 * scale, "{out}: Rust's scale {scale:.9e}");
+    // The rest of the step's report: the same solve, the same state, its times in parts.
+    assert_eq!(field(&out, "stop"), 0.0, "{out}: converged");
+    assert_eq!(field(&out, "warm_started") as usize, last.warm_started, "{out}");
+    assert!(last.warm_started > 0, "a pile's steps start from the last step's impulses");
+    assert_eq!(field(&out, "projected") as usize, last.projected, "{out}");
+    assert_eq!(field(&out, "kinetic_energy").to_bits(), last.kinetic_energy.to_bits(), "{out}");
+    assert_eq!(field(&out, "potential_energy").to_bits(), last.potential_energy.to_bits(), "{out}");
+    let parts = field(&out, "detection") + field(&out, "solve") + field(&out, "projection");
+    assert!(field(&out, "solve") > 0.0 && parts <= field(&out, "seconds") + 3e-6, "{out}");
     let top = sim.positions().iter().map(|p| p.y).fold(0.0, f64::max);
     let sum: f64 = sim.contacts().iter().map(|c| c.impulse[0]).sum();
     assert_eq!(field(&out, "bodies") as usize, sim.body_count());
