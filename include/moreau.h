@@ -328,6 +328,30 @@ enum MoreauStatus moreau_world_add_wall(struct MoreauWorld *world,
                                         double vy,
                                         size_t *wall);
 
+// Adds a solid convex wall polygon of `count` world vertices `(x0, y0, x1, …)` (either
+// orientation), moving at (`vx`, `vy`) and turning at `spin` about its centroid (motion needs
+// the setting `moving_walls`); `wall` (may be NULL) gets its index.
+enum MoreauStatus moreau_world_add_polygon_wall(struct MoreauWorld *world,
+                                                const double *vertices,
+                                                size_t count,
+                                                const char *material,
+                                                double vx,
+                                                double vy,
+                                                double spin,
+                                                size_t *wall);
+
+// Adds a drum: `sides` wall segments on the circle of `radius` about (`x`, `y`), turning at
+// `spin` about it (needs the setting `moving_walls`); `first` (may be NULL) gets the first
+// segment's index, the others following it.
+enum MoreauStatus moreau_world_add_drum(struct MoreauWorld *world,
+                                        double x,
+                                        double y,
+                                        double radius,
+                                        size_t sides,
+                                        const char *material,
+                                        double spin,
+                                        size_t *first);
+
 // Adds the disks of a grains CSV file (a scene's `[[grains]]` columns: x, y, r and optionally
 // vx, vy, spin, tag, material), each of `material` unless its row names one, numbered as `order`
 // says (`auto`, `space`, `file`; NULL: `auto`). `count` gets the number of rows; each row's body

@@ -725,6 +725,67 @@ pub extern "C" fn moreau_world_add_wall(
     })
 }
 
+/// Adds a solid convex wall polygon of `count` world vertices `(x0, y0, x1, …)` (either
+/// orientation), moving at (`vx`, `vy`) and turning at `spin` about its centroid (motion needs
+/// the setting `moving_walls`); `wall` (may be NULL) gets its index.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub extern "C" fn moreau_world_add_polygon_wall(
+    world: *mut MoreauWorld,
+    vertices: *const f64,
+    count: usize,
+    material: *const c_char,
+    vx: f64,
+    vy: f64,
+    spin: f64,
+    wall: *mut usize,
+) -> MoreauStatus {
+    guard(|| {
+        let w = &mut object_mut(world, "world")?.world;
+        let xy = slice(vertices, 2 * count, "vertices")?;
+        let points: Vec<moreau::DVec2> = xy.chunks_exact(2).map(|p| moreau::DVec2::new(p[0], p[1])).collect();
+        let material = w.material_named(text(material, "material")?).map_err(invalid)?;
+        let polygon = Wall::polygon(&points, None, material).map_err(invalid)?;
+        let index = w.add_wall(Wall { velocity: moreau::DVec2::new(vx, vy), spin, ..polygon }).map_err(invalid)?;
+        match wall.is_null() {
+            true => Ok(()),
+            false => copy_out(&[index], wall, 1, "wall"),
+        }
+    })
+}
+
+/// Adds a drum: `sides` wall segments on the circle of `radius` about (`x`, `y`), turning at
+/// `spin` about it (needs the setting `moving_walls`); `first` (may be NULL) gets the first
+/// segment's index, the others following it.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub extern "C" fn moreau_world_add_drum(
+    world: *mut MoreauWorld,
+    x: f64,
+    y: f64,
+    radius: f64,
+    sides: usize,
+    material: *const c_char,
+    spin: f64,
+    first: *mut usize,
+) -> MoreauStatus {
+    guard(|| {
+        let w = &mut object_mut(world, "world")?.world;
+        let material = w.material_named(text(material, "material")?).map_err(invalid)?;
+        let ring = Wall::drum(moreau::DVec2::new(x, y), radius, sides, None, material).map_err(invalid)?;
+        let mut added = w.clone();
+        for segment in ring {
+            added.add_wall(Wall { spin, ..segment }).map_err(invalid)?;
+        }
+        let index = w.walls.len();
+        *w = added;
+        match first.is_null() {
+            true => Ok(()),
+            false => copy_out(&[index], first, 1, "first"),
+        }
+    })
+}
+
 /// Adds the disks of a grains CSV file (a scene's `[[grains]]` columns: x, y, r and optionally
 /// vx, vy, spin, tag, material), each of `material` unless its row names one, numbered as `order`
 /// says (`auto`, `space`, `file`; NULL: `auto`). `count` gets the number of rows; each row's body
@@ -1397,6 +1458,18 @@ mod tests {
         let two = [0.0, 0.0, 1.0, 0.0];
         let status = moreau_world_add_polygon(world, 0.0, 1.0, two.as_ptr(), 2, 0.0, grain, std::ptr::null(), none);
         assert!(status == MoreauStatus::InvalidArgument && last_error().contains("at least 3"), "{}", last_error());
+        let status = moreau_world_add_drum(world, 0.0, 0.0, 0.1, 2, grain, 0.0, none);
+        assert!(status == MoreauStatus::InvalidArgument && last_error().contains("3 <= sides"), "{}", last_error());
+        let status = moreau_world_add_drum(world, 0.0, 0.0, 0.1, 8, grain, 1.0, none);
+        assert!(status == MoreauStatus::InvalidArgument && last_error().contains("moving_walls"), "{}", last_error());
+        let status = moreau_world_add_polygon_wall(world, two.as_ptr(), 2, grain, 0.0, 0.0, 0.0, none);
+        assert!(status == MoreauStatus::InvalidArgument && last_error().contains("at least 3"), "{}", last_error());
+        let mut index = 9;
+        let status = moreau_world_add_drum(world, 0.0, 0.0, 0.1, 8, grain, 0.0, &mut index);
+        assert_eq!((status, index), (MoreauStatus::Ok, 0), "{}", last_error());
+        let square = [0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 1.0];
+        let status = moreau_world_add_polygon_wall(world, square.as_ptr(), 4, grain, 0.0, 0.0, 0.0, &mut index);
+        assert_eq!((status, index), (MoreauStatus::Ok, 8), "{}", last_error());
         // A grains file with a bad second row: the line and the column named, no grain added.
         let path = std::env::temp_dir().join(format!("moreau_capi_grains_{}.csv", std::process::id()));
         std::fs::write(&path, "x,y,r\n0.0,0.5,0.1\n0.3,high,0.1\n").unwrap();

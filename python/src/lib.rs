@@ -298,6 +298,44 @@ impl World {
         self.0.add_wall(wall).map_err(error)
     }
 
+    /// Adds a solid convex wall polygon of world `vertices` (either orientation), moving at
+    /// `velocity` and turning at `spin` about its centroid (with the effect moving_walls).
+    #[pyo3(signature = (vertices, material, velocity = (0.0, 0.0), spin = 0.0))]
+    fn add_polygon_wall(
+        &mut self,
+        vertices: Vec<(f64, f64)>,
+        material: &str,
+        velocity: (f64, f64),
+        spin: f64,
+    ) -> PyResult<usize> {
+        let vertices: Vec<DVec2> = vertices.into_iter().map(vec2).collect();
+        let mut wall = Wall::polygon(&vertices, None, material_named(&self.0, material)?).map_err(error)?;
+        (wall.velocity, wall.spin) = (vec2(velocity), spin);
+        self.0.add_wall(wall).map_err(error)
+    }
+
+    /// Adds a drum: `sides` wall segments on the circle of `radius` about `center`, turning at
+    /// `spin` about it (with the effect moving_walls); returns their indices.
+    #[pyo3(signature = (center, radius, sides, material, spin = 0.0))]
+    fn add_drum(
+        &mut self,
+        center: (f64, f64),
+        radius: f64,
+        sides: usize,
+        material: &str,
+        spin: f64,
+    ) -> PyResult<Vec<usize>> {
+        let ring = Wall::drum(vec2(center), radius, sides, None, material_named(&self.0, material)?).map_err(error)?;
+        let mut added = self.0.clone();
+        let indices = ring
+            .into_iter()
+            .map(|w| added.add_wall(Wall { spin, ..w }))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(error)?;
+        self.0 = added;
+        Ok(indices)
+    }
+
     #[getter]
     fn body_count(&self) -> usize {
         self.0.bodies.len()

@@ -345,6 +345,35 @@ def test_a_stack_hangs_its_weight_on_the_floor_and_a_driven_wall_goes_where_pyth
         moreau.Simulation(world, h=1e-3).set_wall_motion(0, (1.0, 0.0))
 
 
+def test_a_turning_drum_and_a_polygon_wall_built_from_python_step_as_the_scene_file_describing_them(tmp_path):
+    disks = [(0.02 * (k % 5) - 0.04, -0.06 + 0.02 * (k // 5)) for k in range(15)]
+    scene = tmp_path / "drum.toml"
+    scene.write_text(
+        'effects = ["gravity", "friction", "rotation", "moving_walls"]\n[time]\nstep = 1e-3\nsteps = 1\n'
+        '[contact]\nfriction = 0.5\n[[material]]\nname = "grain"\ndensity = 2500.0\n'
+        '[[wall]]\ndrum = { center = [0.0, 0.0], radius = 0.1, sides = 24 }\nmaterial = "grain"\nangular_velocity = 2.0\n'
+        '[[wall]]\npolygon = [[-0.02, -0.1], [0.02, -0.1], [0.0, -0.08]]\nmaterial = "grain"\n'
+        + "".join(f"[[body]]\ndisk = {{ center = [{x!r}, {y!r}], radius = 0.009 }}\n" for x, y in disks)
+    )
+    world = moreau.World([("grain", 2500.0)], friction=0.5, gravity=(0.0, -9.81), rotation=True, moving_walls=True)
+    assert world.add_drum((0.0, 0.0), 0.1, 24, "grain", spin=2.0) == list(range(24))
+    assert world.add_polygon_wall([(-0.02, -0.1), (0.02, -0.1), (0.0, -0.08)], "grain") == 24
+    for x, y in disks:
+        world.add_disk((x, y), 0.009, "grain")
+    ours, theirs = moreau.Simulation(world, h=1e-3), moreau.Simulation.from_scene(scene)
+    for sim in (ours, theirs):
+        sim.set_device("cpu", threads=1)
+        for _ in range(200):
+            sim.step()
+    np.testing.assert_array_equal(ours.positions, theirs.positions)
+    np.testing.assert_array_equal(ours.walls()["angle"], theirs.walls()["angle"])
+    np.testing.assert_allclose(ours.walls()["angle"][:24], 0.4, rtol=1e-12)
+    with pytest.raises(moreau.MoreauError, match="3 <= sides"):
+        world.add_drum((0.0, 0.0), 0.1, 2, "grain")
+    with pytest.raises(moreau.MoreauError, match="at least 3 finite vertices"):
+        world.add_polygon_wall([(0.0, 0.0), (1.0, 0.0)], "grain")
+
+
 def test_a_shuffled_packing_read_from_python_is_numbered_in_rows_and_each_row_finds_its_body(tmp_path):
     # 40 x 10 disks touching on a square lattice, written shuffled.
     rows = [(0.05 + 0.1 * j, 0.05 + 0.1 * i) for i in range(10) for j in range(40)]

@@ -11,7 +11,7 @@ use super::grains_csv;
 use super::{deposition, from_toml, generate, Ctx, OutputSettings, Scene, SceneError};
 use crate::solvers::{Ordering, SolverKind, SolverOptions, StopCriterion};
 use crate::stepping::StepSettings;
-use crate::world::{BodySpec, Effect, Effects, Interaction, Materials, Periodic, PolygonShape, Wall, WallShape, World};
+use crate::world::{BodySpec, Effect, Effects, Interaction, Materials, Periodic, Wall, WallShape, World};
 
 type P = Exact<f64, 2>;
 
@@ -42,7 +42,6 @@ impl<'de, T: Deserialize<'de>, const N: usize> Deserialize<'de> for Exact<T, N> 
 /// out of memory or time: this one, the most grains a generator or a grains file may make.
 pub const MAX_GENERATED: usize = 5_000_000;
 const MAX_PYRAMID_BASE: usize = 3_000;
-const MAX_DRUM_SIDES: usize = 100_000;
 const MAX_POLYGON_SIDES: usize = 1_000;
 
 #[derive(Deserialize)]
@@ -506,20 +505,9 @@ impl Builder<'_> {
                 polygon_vertices = Some(p.iter().map(|x| v(*x)).collect());
             }
             if let Some(vertices) = polygon_vertices {
-                let mut tmp = crate::world::Bodies::new(true);
-                let centroid_guess = vertices.iter().copied().sum::<DVec2>() / vertices.len().max(1) as f64;
-                let rel: Vec<DVec2> = vertices.iter().map(|p| *p - centroid_guess).collect();
-                tmp.add(&BodySpec::polygon(centroid_guess, rel, 0), 1.0)
+                let wall = Wall::polygon(&vertices, spec.center.map(v), material)
                     .or_else(|m| self.cx.err(w.span(), field("polygon"), m))?;
-                let centroid = tmp.position[0];
-                let c = spec.center.map(v).unwrap_or(centroid);
-                let shape = tmp.polygons.remove(0);
-                let local: Vec<DVec2> = shape.vertices.iter().map(|p| *p + centroid - c).collect();
-                let pts: Vec<_> = local.iter().map(|p| parry2d::math::Vector::new(p.x as f32, p.y as f32)).collect();
-                let parry = parry2d::shape::ConvexPolygon::from_convex_polyline(pts)
-                    .ok_or(())
-                    .or_else(|_| self.cx.err(w.span(), field("polygon"), "degenerate polygon"))?;
-                parts.push((WallShape::Polygon(PolygonShape { vertices: local, parry }), c));
+                parts.push((wall.shape, wall.center));
             }
             if let Some(b) = &spec.container {
                 let (lo, hi) = check_box(b, "container")?;
@@ -530,24 +518,9 @@ impl Builder<'_> {
                 parts.push(segment_part(br, tr, c));
             }
             if let Some(d) = &spec.drum {
-                if !(finite(&d.center[..])
-                    && d.radius.is_finite()
-                    && d.radius > 0.0
-                    && (3..=MAX_DRUM_SIDES).contains(&d.sides))
-                {
-                    return self.cx.err(
-                        w.span(),
-                        field("drum"),
-                        format!("needs a finite centre, radius > 0 and 3 <= sides <= {MAX_DRUM_SIDES}"),
-                    );
-                }
-                let c = spec.center.map(v).unwrap_or(v(d.center));
-                let at = |k: usize| {
-                    v(d.center) + d.radius * DVec2::from_angle(std::f64::consts::TAU * k as f64 / d.sides as f64)
-                };
-                for s in 0..d.sides {
-                    parts.push(segment_part(at(s), at(s + 1), c));
-                }
+                let ring = Wall::drum(v(d.center), d.radius, d.sides, spec.center.map(v), material)
+                    .or_else(|m| self.cx.err(w.span(), field("drum"), m))?;
+                parts.extend(ring.into_iter().map(|w| (w.shape, w.center)));
             }
             for (shape, center) in parts {
                 walls.push(Wall { shape, center, angle: 0.0, velocity, spin, material });

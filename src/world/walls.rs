@@ -6,6 +6,9 @@ use glam::DVec2;
 
 use super::PolygonShape;
 
+/// The most segments a drum may have.
+pub const MAX_DRUM_SIDES: usize = 100_000;
+
 /// A wall's geometry in its own frame.
 #[derive(Clone, Debug)]
 pub enum WallShape {
@@ -67,6 +70,45 @@ impl Wall {
             spin: 0.0,
             material,
         }
+    }
+
+    /// A solid convex polygon of world `vertices` (either orientation), its frame at `frame` or
+    /// else at the polygon's centroid.
+    pub fn polygon(vertices: &[DVec2], frame: Option<DVec2>, material: usize) -> Result<Self, String> {
+        let mut tmp = super::Bodies::new(true);
+        let centroid_guess = vertices.iter().copied().sum::<DVec2>() / vertices.len().max(1) as f64;
+        let rel: Vec<DVec2> = vertices.iter().map(|p| *p - centroid_guess).collect();
+        tmp.add(&super::BodySpec::polygon(centroid_guess, rel, 0), 1.0)?;
+        let centroid = tmp.position[0];
+        let c = frame.unwrap_or(centroid);
+        let shape = tmp.polygons.remove(0);
+        let local: Vec<DVec2> = shape.vertices.iter().map(|p| *p + centroid - c).collect();
+        let pts: Vec<_> = local.iter().map(|p| parry2d::math::Vector::new(p.x as f32, p.y as f32)).collect();
+        let parry = parry2d::shape::ConvexPolygon::from_convex_polyline(pts).ok_or("degenerate polygon")?;
+        let polygon = WallShape::Polygon(PolygonShape { vertices: local, parry });
+        Ok(Self { shape: polygon, center: c, ..Self::segment(DVec2::ZERO, DVec2::X, material) })
+    }
+
+    /// A drum: `sides` segments on the circle of `radius` about `center`, each with its frame at
+    /// `frame` or else at the centre, about which a spin turns them.
+    pub fn drum(
+        center: DVec2,
+        radius: f64,
+        sides: usize,
+        frame: Option<DVec2>,
+        material: usize,
+    ) -> Result<Vec<Self>, String> {
+        if !(center.is_finite() && radius.is_finite() && radius > 0.0 && (3..=MAX_DRUM_SIDES).contains(&sides)) {
+            return Err(format!("needs a finite centre, radius > 0 and 3 <= sides <= {MAX_DRUM_SIDES}"));
+        }
+        let c = frame.unwrap_or(center);
+        let at = |k: usize| center + radius * DVec2::from_angle(std::f64::consts::TAU * k as f64 / sides as f64);
+        let segment = |a: DVec2, b: DVec2| Self {
+            shape: WallShape::Segment { a: a - c, b: b - c },
+            center: c,
+            ..Self::segment(a, b, material)
+        };
+        Ok((0..sides).map(|s| segment(at(s), at(s + 1))).collect())
     }
 
     /// World coordinates of the wall's points (segment endpoints or polygon vertices).
