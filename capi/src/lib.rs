@@ -312,6 +312,14 @@ fn copy_vectors(
     })
 }
 
+/// Writes `value` to `out` unless the caller passed NULL there (an index it does not want).
+fn give_optional<T: Copy>(value: T, out: *mut T, name: &str) -> Result<(), Failure> {
+    match out.is_null() {
+        true => Ok(()),
+        false => copy_out(&[value], out, 1, name),
+    }
+}
+
 fn give<T>(out: *mut *mut T, value: T) -> Result<(), Failure> {
     if out.is_null() {
         return fail(MoreauStatus::InvalidArgument, "out is NULL");
@@ -651,10 +659,7 @@ fn add_body(
     let m = peek(motion).copied().unwrap_or_default();
     (spec.angle, spec.velocity, spec.spin, spec.fixed) = (angle, moreau::DVec2::new(m.vx, m.vy), m.spin, m.fixed);
     let index = w.add_body(&spec).map_err(invalid)?;
-    match body.is_null() {
-        true => Ok(()),
-        false => copy_out(&[index], body, 1, "body"),
-    }
+    give_optional(index, body, "body")
 }
 
 /// Adds a disk of the named material, moving as `motion` says (NULL: at rest); `body` (may be
@@ -718,10 +723,7 @@ pub extern "C" fn moreau_world_add_wall(
         let mut segment = Wall::segment(moreau::DVec2::new(ax, ay), moreau::DVec2::new(bx, by), material);
         segment.velocity = moreau::DVec2::new(vx, vy);
         let index = w.add_wall(segment).map_err(invalid)?;
-        match wall.is_null() {
-            true => Ok(()),
-            false => copy_out(&[index], wall, 1, "wall"),
-        }
+        give_optional(index, wall, "wall")
     })
 }
 
@@ -747,10 +749,7 @@ pub extern "C" fn moreau_world_add_polygon_wall(
         let material = w.material_named(text(material, "material")?).map_err(invalid)?;
         let polygon = Wall::polygon(&points, None, material).map_err(invalid)?;
         let index = w.add_wall(Wall { velocity: moreau::DVec2::new(vx, vy), spin, ..polygon }).map_err(invalid)?;
-        match wall.is_null() {
-            true => Ok(()),
-            false => copy_out(&[index], wall, 1, "wall"),
-        }
+        give_optional(index, wall, "wall")
     })
 }
 
@@ -773,16 +772,8 @@ pub extern "C" fn moreau_world_add_drum(
         let w = &mut object_mut(world, "world")?.world;
         let material = w.material_named(text(material, "material")?).map_err(invalid)?;
         let ring = Wall::drum(moreau::DVec2::new(x, y), radius, sides, None, material).map_err(invalid)?;
-        let mut added = w.clone();
-        for segment in ring {
-            added.add_wall(Wall { spin, ..segment }).map_err(invalid)?;
-        }
-        let index = w.walls.len();
-        *w = added;
-        match first.is_null() {
-            true => Ok(()),
-            false => copy_out(&[index], first, 1, "first"),
-        }
+        let added = w.add_walls(ring.into_iter().map(|s| Wall { spin, ..s }).collect()).map_err(invalid)?;
+        give_optional(added.start, first, "first")
     })
 }
 
@@ -810,10 +801,7 @@ pub extern "C" fn moreau_world_add_grains(
         let bodies =
             add_grains(&mut handle.world, Path::new(path), material, order).or_else(|e| fail(MoreauStatus::File, e))?;
         handle.grain_bodies = bodies;
-        match count.is_null() {
-            true => Ok(()),
-            false => copy_out(&[handle.grain_bodies.len()], count, 1, "count"),
-        }
+        give_optional(handle.grain_bodies.len(), count, "count")
     })
 }
 
@@ -1230,10 +1218,7 @@ pub extern "C" fn moreau_simulation_add_disk(
         let index = sim
             .add_disk(center, radius, text(material, "material")?, velocity)
             .or_else(|e| fail(MoreauStatus::InvalidArgument, e.to_string()))?;
-        match body.is_null() {
-            true => Ok(()),
-            false => copy_out(&[index], body, 1, "body"),
-        }
+        give_optional(index, body, "body")
     })
 }
 

@@ -326,14 +326,8 @@ impl World {
         spin: f64,
     ) -> PyResult<Vec<usize>> {
         let ring = Wall::drum(vec2(center), radius, sides, None, material_named(&self.0, material)?).map_err(error)?;
-        let mut added = self.0.clone();
-        let indices = ring
-            .into_iter()
-            .map(|w| added.add_wall(Wall { spin, ..w }))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(error)?;
-        self.0 = added;
-        Ok(indices)
+        let added = self.0.add_walls(ring.into_iter().map(|w| Wall { spin, ..w }).collect()).map_err(error)?;
+        Ok(added.collect())
     }
 
     #[getter]

@@ -156,10 +156,7 @@ impl Simulation {
             if let Antagonist::Wall(w) = c.contact.other {
                 let on_wall = -c.force(h);
                 let arm = c.contact.point - self.world.walls[w].center;
-                let load = &mut loads[w];
-                load.force[0] += on_wall.x;
-                load.force[1] += on_wall.y;
-                load.moment += arm.perp_dot(on_wall);
+                add_load(&mut loads[w], on_wall, arm.perp_dot(on_wall));
             }
         }
         loads
@@ -169,15 +166,7 @@ impl Simulation {
     /// same order).
     pub fn body_loads(&self) -> Vec<WallLoad> {
         let mut loads = vec![WallLoad::default(); self.world.bodies.len()];
-        let h = self.settings.h;
-        for c in &self.contacts {
-            for (k, on_body, image) in c.loaded_bodies(h) {
-                let load = &mut loads[k];
-                load.force[0] += on_body.x;
-                load.force[1] += on_body.y;
-                load.moment += (c.contact.point - self.world.bodies.position[k] - image).perp_dot(on_body);
-            }
-        }
+        self.each_contact_load(|k, force, moment| add_load(&mut loads[k], force, moment));
         loads
     }
 
@@ -185,16 +174,30 @@ impl Simulation {
     /// for a piston, what the grains push back with.
     pub fn body_load(&self, k: usize) -> WallLoad {
         let mut load = WallLoad::default();
-        let h = self.settings.h;
-        for c in &self.contacts {
-            for (_, on_body, image) in c.loaded_bodies(h).filter(|&(j, ..)| j == k) {
-                load.force[0] += on_body.x;
-                load.force[1] += on_body.y;
-                load.moment += (c.contact.point - self.world.bodies.position[k] - image).perp_dot(on_body);
+        self.each_contact_load(|j, force, moment| {
+            if j == k {
+                add_load(&mut load, force, moment)
             }
-        }
+        });
         load
     }
+
+    /// Each contact's mean force on each body it loads, with its moment about the body's centre,
+    /// in contact order.
+    fn each_contact_load(&self, mut each: impl FnMut(usize, DVec2, f64)) {
+        let h = self.settings.h;
+        for c in &self.contacts {
+            for (k, on_body, image) in c.loaded_bodies(h) {
+                each(k, on_body, (c.contact.point - self.world.bodies.position[k] - image).perp_dot(on_body));
+            }
+        }
+    }
+}
+
+fn add_load(load: &mut WallLoad, force: DVec2, moment: f64) {
+    load.force[0] += force.x;
+    load.force[1] += force.y;
+    load.moment += moment;
 }
 
 /// The probability density of normal forces over their mean (the granular physicist's first

@@ -153,10 +153,16 @@ impl World {
 
     /// Adds a wall; returns its index.
     pub fn add_wall(&mut self, wall: Wall) -> Result<usize, WorldError> {
-        let index = self.walls.len();
-        self.check_wall(index, &wall)?;
-        self.walls.push(wall);
-        Ok(index)
+        Ok(self.add_walls(vec![wall])?.start)
+    }
+
+    /// Adds walls that stand together (a drum's segments); returns their indices. None is added
+    /// when one is refused.
+    pub fn add_walls(&mut self, walls: Vec<Wall>) -> Result<std::ops::Range<usize>, WorldError> {
+        let first = self.walls.len();
+        walls.iter().enumerate().try_for_each(|(k, w)| self.check_wall(first + k, w))?;
+        self.walls.extend(walls);
+        Ok(first..self.walls.len())
     }
 
     /// Whether `wall` may stand as wall `index` of this world: its material, its motion (the

@@ -61,15 +61,17 @@ impl WallShape {
 impl Wall {
     /// A fixed segment from `a` to `b`.
     pub fn segment(a: DVec2, b: DVec2, material: usize) -> Self {
-        let c = (a + b) / 2.0;
-        Self {
-            shape: WallShape::Segment { a: a - c, b: b - c },
-            center: c,
-            angle: 0.0,
-            velocity: DVec2::ZERO,
-            spin: 0.0,
-            material,
-        }
+        Self::segment_about(a, b, (a + b) / 2.0, material)
+    }
+
+    /// A fixed segment from `a` to `b` whose frame is at `center` (a spin turns it about that).
+    fn segment_about(a: DVec2, b: DVec2, center: DVec2, material: usize) -> Self {
+        Self::fixed(WallShape::Segment { a: a - center, b: b - center }, center, material)
+    }
+
+    /// A fixed wall of `shape` (in its frame) with its frame at `center`.
+    fn fixed(shape: WallShape, center: DVec2, material: usize) -> Self {
+        Self { shape, center, angle: 0.0, velocity: DVec2::ZERO, spin: 0.0, material }
     }
 
     /// A solid convex polygon of world `vertices` (either orientation), its frame at `frame` or
@@ -86,7 +88,7 @@ impl Wall {
         let pts: Vec<_> = local.iter().map(|p| parry2d::math::Vector::new(p.x as f32, p.y as f32)).collect();
         let parry = parry2d::shape::ConvexPolygon::from_convex_polyline(pts).ok_or("degenerate polygon")?;
         let polygon = WallShape::Polygon(PolygonShape { vertices: local, parry });
-        Ok(Self { shape: polygon, center: c, ..Self::segment(DVec2::ZERO, DVec2::X, material) })
+        Ok(Self::fixed(polygon, c, material))
     }
 
     /// A drum: `sides` segments on the circle of `radius` about `center`, each with its frame at
@@ -103,12 +105,7 @@ impl Wall {
         }
         let c = frame.unwrap_or(center);
         let at = |k: usize| center + radius * DVec2::from_angle(std::f64::consts::TAU * k as f64 / sides as f64);
-        let segment = |a: DVec2, b: DVec2| Self {
-            shape: WallShape::Segment { a: a - c, b: b - c },
-            center: c,
-            ..Self::segment(a, b, material)
-        };
-        Ok((0..sides).map(|s| segment(at(s), at(s + 1))).collect())
+        Ok((0..sides).map(|s| Self::segment_about(at(s), at(s + 1), c, material)).collect())
     }
 
     /// World coordinates of the wall's points (segment endpoints or polygon vertices).
