@@ -369,6 +369,12 @@ enum MoreauStatus moreau_world_copy_grain_bodies(const struct MoreauWorld *world
                                                  size_t *bodies,
                                                  size_t len);
 
+// Makes the world periodic along x over [`x0`, `x1`) (a shear cell, a slope without side walls):
+// a grain that leaves at `x1` comes back at `x0`, and grains touch through the boundary. Every
+// body, and each one added later, is brought into the cell, which must be at least four of the
+// widest bodies long. Walls are not periodic: a floor should span the cell.
+enum MoreauStatus moreau_world_set_periodic(struct MoreauWorld *world, double x0, double x1);
+
 // The number of bodies (0 for NULL).
 size_t moreau_world_body_count(const struct MoreauWorld *world);
 

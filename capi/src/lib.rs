@@ -816,6 +816,15 @@ pub extern "C" fn moreau_world_copy_grain_bodies(
     guard(|| copy_out(&object(world, "world")?.grain_bodies, bodies, len, "bodies"))
 }
 
+/// Makes the world periodic along x over [`x0`, `x1`) (a shear cell, a slope without side walls):
+/// a grain that leaves at `x1` comes back at `x0`, and grains touch through the boundary. Every
+/// body, and each one added later, is brought into the cell, which must be at least four of the
+/// widest bodies long. Walls are not periodic: a floor should span the cell.
+#[no_mangle]
+pub extern "C" fn moreau_world_set_periodic(world: *mut MoreauWorld, x0: f64, x1: f64) -> MoreauStatus {
+    guard(|| object_mut(world, "world")?.world.set_periodic(x0, x1).map_err(invalid))
+}
+
 /// The number of bodies (0 for NULL).
 #[no_mangle]
 pub extern "C" fn moreau_world_body_count(world: *const MoreauWorld) -> usize {
@@ -1475,10 +1484,23 @@ mod tests {
         assert!(status == MoreauStatus::InvalidArgument && last_error().contains("spin"), "{}", last_error());
         let status = moreau_world_add_disk(world, 0.0, 1.0, 0.1, grain, std::ptr::null(), &mut body);
         assert_eq!((status, body), (MoreauStatus::Ok, 0), "{}", last_error());
+        // A periodic cell shorter than four of its widest bodies is refused; a body added to a
+        // cell is brought into it, and one too wide for it refused.
+        assert_eq!(moreau_world_set_periodic(world, -0.2, 0.5), MoreauStatus::InvalidArgument);
+        assert!(last_error().contains("at least 4 of its widest bodies (2e-1 m)"), "{}", last_error());
+        assert_eq!(moreau_world_set_periodic(world, -1.0, 1.0), MoreauStatus::Ok, "{}", last_error());
+        let status = moreau_world_add_disk(world, 2.5, 1.0, 0.1, grain, std::ptr::null(), &mut body);
+        assert_eq!((status, body), (MoreauStatus::Ok, 1), "{}", last_error());
+        let status = moreau_world_add_disk(world, 0.0, 2.0, 0.3, grain, std::ptr::null(), &mut body);
+        assert!(status == MoreauStatus::InvalidArgument && last_error().starts_with("periodic cell x:"));
+        assert_eq!(moreau_world_body_count(world), 2);
         assert_eq!(moreau_simulation_new(world, 1e-3, std::ptr::null(), &mut sim), MoreauStatus::Ok);
+        let mut xy = [0.0; 4];
+        assert_eq!(moreau_simulation_copy_positions(sim, xy.as_mut_ptr(), 4), MoreauStatus::Ok);
+        assert_eq!(xy[2], 0.5, "brought into the cell");
         assert_eq!(moreau_simulation_set_spin(sim, 0, 1.0), MoreauStatus::InvalidArgument);
         assert!(last_error().contains("without the effect rotation"), "{}", last_error());
-        assert_eq!(moreau_simulation_body_count(sim), 1);
+        assert_eq!(moreau_simulation_body_count(sim), 2);
         moreau_simulation_free(sim);
         moreau_world_free(world);
     }

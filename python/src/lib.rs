@@ -330,6 +330,19 @@ impl World {
         Ok(added.collect())
     }
 
+    /// Makes the world periodic along x over [x0, x1) (a shear cell, a slope without side walls):
+    /// every body, and each one added later, is brought into the cell; the cell must be at least
+    /// four of the widest bodies long.
+    fn set_periodic(&mut self, x0: f64, x1: f64) -> PyResult<()> {
+        self.0.set_periodic(x0, x1).map_err(error)
+    }
+
+    /// The periodic cell (x0, x1), or None.
+    #[getter]
+    fn periodic(&self) -> Option<(f64, f64)> {
+        self.0.periodic.map(|p| (p.x0, p.x1))
+    }
+
     #[getter]
     fn body_count(&self) -> usize {
         self.0.bodies.len()

@@ -374,6 +374,45 @@ def test_a_turning_drum_and_a_polygon_wall_built_from_python_step_as_the_scene_f
         world.add_polygon_wall([(0.0, 0.0), (1.0, 0.0)], "grain")
 
 
+def test_a_periodic_cell_built_from_python_steps_as_the_scene_file_describing_it(tmp_path):
+    # Grains sliding right along a floor leave the cell at x = 0.2 and come back at 0; the last
+    # one is given beyond the cell, where both bring it in.
+    disks = [(0.01 + 0.021 * k, 0.01 + 0.02 * (k % 2)) for k in range(9)] + [(0.25, 0.05)]
+    scene = tmp_path / "cell.toml"
+    scene.write_text(
+        'effects = ["gravity", "friction", "rotation"]\n[time]\nstep = 1e-3\nsteps = 1\n'
+        '[contact]\nfriction = 0.1\n[[material]]\nname = "grain"\ndensity = 2500.0\n[periodic]\nx = [0.0, 0.2]\n'
+        '[[wall]]\nsegment = [[-0.1, 0.0], [0.3, 0.0]]\nmaterial = "grain"\n'
+        + "".join(f"[[body]]\ndisk = {{ center = [{x!r}, {y!r}], radius = 0.009 }}\nvelocity = [1.0, 0.0]\n" for x, y in disks)
+    )
+    world = moreau.World([("grain", 2500.0)], friction=0.1, gravity=(0.0, -9.81), rotation=True)
+    assert world.periodic is None
+    world.add_wall((-0.1, 0.0), (0.3, 0.0), "grain")
+    for x, y in disks[:5]:
+        world.add_disk((x, y), 0.009, "grain", velocity=(1.0, 0.0))
+    world.set_periodic(0.0, 0.2)
+    for x, y in disks[5:]:
+        world.add_disk((x, y), 0.009, "grain", velocity=(1.0, 0.0))
+    assert world.periodic == (0.0, 0.2)
+    ours, theirs = moreau.Simulation(world, h=1e-3), moreau.Simulation.from_scene(scene)
+    np.testing.assert_allclose(ours.positions[-1], (0.05, 0.05), rtol=1e-12)
+    for sim in (ours, theirs):
+        sim.set_device("cpu", threads=1)
+        for _ in range(300):
+            sim.step()
+    np.testing.assert_array_equal(ours.positions, theirs.positions)
+    assert ours.positions[:, 0].min() >= 0.0 and ours.positions[:, 0].max() < 0.2
+    assert (ours.velocities[:, 0] > 0.3).all(), "still sliding right, through the boundary"
+    # A grain added to the running cell comes in too; one wider than a quarter of it is refused.
+    k = ours.add_disk((0.45, 0.1), 0.009, "grain")
+    np.testing.assert_allclose(ours.positions[k, 0], 0.05, rtol=1e-12)
+    with pytest.raises(moreau.MoreauError, match="at least 4 of its widest bodies"):
+        ours.add_disk((0.1, 0.2), 0.03, "grain")
+    assert len(ours.positions) == k + 1
+    with pytest.raises(moreau.MoreauError, match=r"periodic cell x: \[0.2, 0.1\] must be finite with x0 < x1"):
+        world.set_periodic(0.2, 0.1)
+
+
 def test_a_shuffled_packing_read_from_python_is_numbered_in_rows_and_each_row_finds_its_body(tmp_path):
     # 40 x 10 disks touching on a square lattice, written shuffled.
     rows = [(0.05 + 0.1 * j, 0.05 + 0.1 * i) for i in range(10) for j in range(40)]

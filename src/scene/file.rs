@@ -11,7 +11,7 @@ use super::grains_csv;
 use super::{deposition, from_toml, generate, Ctx, OutputSettings, Scene, SceneError};
 use crate::solvers::{Ordering, SolverKind, SolverOptions, StopCriterion};
 use crate::stepping::StepSettings;
-use crate::world::{BodySpec, Effect, Effects, Interaction, Materials, Periodic, Wall, WallShape, World};
+use crate::world::{BodySpec, Effect, Effects, Interaction, Materials, Wall, WallShape, World, WorldError};
 
 type P = Exact<f64, 2>;
 
@@ -756,23 +756,14 @@ impl Builder<'_> {
     fn periodic(&self, world: &mut World) -> Result<(), SceneError> {
         if let Some(p) = &self.file.periodic {
             let [x0, x1] = p.get_ref().x;
-            let cell = Periodic::new(x0, x1).or_else(|m| self.cx.err(p.span(), "periodic.x", m))?;
-            // A pair must touch directly or through the boundary, never both.
-            let widest = world.bodies.bounding_radius.iter().fold(0.0f64, |m, r| m.max(2.0 * r));
-            if cell.length() < 4.0 * widest {
-                return self.cx.err(
-                    p.span(),
-                    "periodic.x",
-                    format!(
-                        "the cell is {:e} m long: at least 4 of its widest bodies ({widest:e} m) must fit",
-                        cell.length()
-                    ),
-                );
-            }
-            world.periodic = Some(cell);
-            world.wrap_positions();
+            world.set_periodic(x0, x1).or_else(|e| {
+                let why = match e {
+                    WorldError::Periodic(m) => m,
+                    other => other.to_string(),
+                };
+                self.cx.err(p.span(), "periodic.x", why)
+            })?;
         }
-
         Ok(())
     }
 

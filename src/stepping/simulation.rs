@@ -11,7 +11,7 @@ use crate::detection::{Antagonist, DetectedContact, Detector};
 use crate::problem::cone::ContactStatus;
 use crate::problem::ContactProblem;
 use crate::solvers::{SolverKind, SolverOptions, StopReason};
-use crate::world::{BodySpec, Wall, World};
+use crate::world::{BodySpec, Wall, World, WorldError};
 
 /// Time step, θ, alert distance and the solver of each step.
 #[derive(Clone, Debug)]
@@ -256,7 +256,7 @@ pub enum BodyError {
         /// Walls there are.
         count: usize,
     },
-    /// A wall refused (its material, geometry or motion).
+    /// A wall refused (its material, geometry or motion), or a body the periodic cell refuses.
     #[error(transparent)]
     World(#[from] crate::world::WorldError),
     /// Anything else, in words.
@@ -435,11 +435,17 @@ impl Simulation {
         Ok(sim)
     }
 
-    /// Adds a body; its density comes from its material.
+    /// Adds a body; its density comes from its material. In a periodic world it is brought into
+    /// the cell, and refused when wider than a quarter of it.
     pub fn add_body(&mut self, spec: &BodySpec) -> Result<usize, BodyError> {
-        let density = *self.world.materials.density.get(spec.material).ok_or(BodyError::NoMaterial(spec.material))?;
+        if spec.material >= self.world.materials.len() {
+            return Err(BodyError::NoMaterial(spec.material));
+        }
         self.extent = None;
-        self.world.bodies.add(spec, density).map_err(BodyError::Invalid)
+        self.world.add_body(spec).map_err(|e| match e {
+            WorldError::Body(why) => BodyError::Invalid(why),
+            other => BodyError::World(other),
+        })
     }
 
     /// Adds a disk of the named material, moving at `velocity`; returns its index.

@@ -3,7 +3,7 @@
 
 use glam::DVec2;
 
-use super::{BodySpec, Effects, Interaction, Materials, Wall, WallShape, World};
+use super::{BodySpec, Effects, Interaction, Materials, Periodic, Wall, WallShape, World};
 
 /// An input of a world built in code, refused.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -42,6 +42,9 @@ pub enum WorldError {
     /// A body refused.
     #[error("{0}")]
     Body(String),
+    /// A periodic cell refused, or a body too wide for it.
+    #[error("periodic cell x: {0}")]
+    Periodic(String),
 }
 
 impl Interaction {
@@ -148,7 +151,39 @@ impl World {
                 spec.spin
             )));
         }
-        self.bodies.add(spec, density).map_err(WorldError::Body)
+        let k = self.bodies.add(spec, density).map_err(WorldError::Body)?;
+        if let Some(cell) = self.periodic {
+            if let Err(why) = self.fits_cell(cell, k..k + 1) {
+                self.bodies.remove(k);
+                return Err(WorldError::Periodic(why));
+            }
+            self.bodies.position[k].x = cell.wrap(self.bodies.position[k].x);
+        }
+        Ok(k)
+    }
+
+    /// Makes the world periodic along x over `[x0, x1)`: a grain that leaves at `x1` comes back at
+    /// `x0`, and grains touch through the boundary. Every body is brought into the cell, and the
+    /// bodies added later too. The cell must be at least four of its widest bodies long.
+    pub fn set_periodic(&mut self, x0: f64, x1: f64) -> Result<(), WorldError> {
+        let cell = Periodic::new(x0, x1).map_err(WorldError::Periodic)?;
+        self.fits_cell(cell, 0..self.bodies.len()).map_err(WorldError::Periodic)?;
+        self.periodic = Some(cell);
+        self.wrap_positions();
+        Ok(())
+    }
+
+    /// Whether the bodies `range` fit `cell`: a pair must touch directly or through the boundary,
+    /// never both, so the cell is at least four of the widest bodies long.
+    fn fits_cell(&self, cell: Periodic, range: std::ops::Range<usize>) -> Result<(), String> {
+        let widest = self.bodies.bounding_radius[range].iter().fold(0.0f64, |m, r| m.max(2.0 * r));
+        if cell.length() < 4.0 * widest {
+            return Err(format!(
+                "the cell is {:e} m long: at least 4 of its widest bodies ({widest:e} m) must fit",
+                cell.length()
+            ));
+        }
+        Ok(())
     }
 
     /// Adds a wall; returns its index.
@@ -195,7 +230,7 @@ impl World {
     }
 
     /// Checks what a host may have set by hand (the fields are public): the materials, every
-    /// pair's law, gravity and every wall, as [`Self::in_code`] and [`Self::add_wall`] check them.
+    /// pair's law, gravity, the periodic cell against the widest body, and every wall, as [`Self::in_code`] and [`Self::add_wall`] check them.
     /// Bodies are checked as they are added.
     pub fn validate(&self) -> Result<(), WorldError> {
         self.check_materials()?;
@@ -212,6 +247,11 @@ impl World {
         }
         if let Some(g) = self.effects.gravity.filter(|g| !g.is_finite()) {
             return Err(WorldError::Gravity(g));
+        }
+        if let Some(cell) = self.periodic {
+            Periodic::new(cell.x0, cell.x1)
+                .and_then(|cell| self.fits_cell(cell, 0..self.bodies.len()))
+                .map_err(WorldError::Periodic)?;
         }
         self.walls.iter().enumerate().try_for_each(|(k, w)| self.check_wall(k, w))
     }
@@ -282,5 +322,25 @@ mod tests {
         world.materials.set(1, 1, law);
         world.walls.push(Wall::segment(DVec2::X, DVec2::X, 0));
         assert!(world.validate().unwrap_err().to_string().starts_with("wall 1: segment endpoints"));
+    }
+
+    #[test]
+    fn a_periodic_cell_in_code_wraps_its_bodies_and_refuses_one_too_wide() {
+        let mut world = World::in_code(sand(), Interaction::default(), None, false, false).unwrap();
+        world.add_body(&BodySpec::disk(DVec2::new(2.5, 0.0), 0.1, 0)).unwrap();
+        let refused = |w: &mut World, x0, x1| w.set_periodic(x0, x1).unwrap_err().to_string();
+        assert!(refused(&mut world, 1.0, f64::NAN).contains("[1, NaN] must be finite with x0 < x1"));
+        let short = refused(&mut world, 0.0, 0.5);
+        assert!(short.contains("the cell is 5e-1 m long: at least 4 of its widest bodies (2e-1 m)"), "{short}");
+        assert_eq!(world.periodic, None, "a refused cell changes nothing");
+        world.set_periodic(0.0, 1.0).unwrap();
+        assert_eq!(world.bodies.position[0], DVec2::new(0.5, 0.0), "brought into the cell");
+        assert_eq!(world.add_body(&BodySpec::disk(DVec2::new(-0.25, 1.0), 0.1, 0)), Ok(1));
+        assert_eq!(world.bodies.position[1].x, 0.75, "a body added later too");
+        let wide = world.add_body(&BodySpec::disk(DVec2::new(0.5, 3.0), 0.2, 0)).unwrap_err().to_string();
+        assert!(wide.starts_with("periodic cell x: the cell is 1e0 m long"), "{wide}");
+        assert_eq!(world.bodies.len(), 2, "the wide body is not kept");
+        world.periodic = Some(Periodic { x0: 0.0, x1: 0.3 });
+        assert!(world.validate().unwrap_err().to_string().contains("the cell is 3e-1 m long"));
     }
 }
