@@ -136,7 +136,8 @@ typedef struct MoreauMotion {
   double vy;
   // Spin (rad/s; needs the setting `rotation`).
   double spin;
-  // A fixed body never moves (no velocity, no spin).
+  // A fixed body has infinite mass: it moves only at `vx`, `vy` and `spin` (a kinematic body:
+  // a conveyor, a paddle), which `moreau_simulation_set_velocity` and `_set_spin` change.
   bool fixed;
 } MoreauMotion;
 
@@ -493,7 +494,7 @@ enum MoreauStatus moreau_simulation_set_wall_motion(struct MoreauSimulation *sim
                                                     double vy,
                                                     double spin);
 
-// Sets a body's velocity from the next step on.
+// Sets a body's velocity from the next step on (a fixed body keeps it: it is driven).
 enum MoreauStatus moreau_simulation_set_velocity(struct MoreauSimulation *sim,
                                                  size_t body,
                                                  double vx,

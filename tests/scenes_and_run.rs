@@ -319,6 +319,13 @@ fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
         .output()
         .unwrap();
     assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("steps.csv"));
+    // A missing file and a folder are worded as such, not as XML errors.
+    for (path, says) in [(out.join("contacts_999999.vtu"), "No such file"), (out.clone(), "a folder, not a .vtu file")]
+    {
+        let o = Command::new(env!("CARGO_BIN_EXE_moreau")).arg("stats").arg(&path).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(says) && !err.contains("XML"), "{err}");
+    }
     // `moreau picture` redraws a saved step coloured by pressure, and the run as an animation.
     let picture = |args: &[&str]| {
         Command::new(env!("CARGO_BIN_EXE_moreau")).arg("picture").arg(&out).args(args).output().unwrap()

@@ -396,3 +396,67 @@ fn scenes_refuse_a_force_on_a_fixed_body_and_a_mass_that_is_not_positive() {
         assert!(msg.contains("body[0]") && msg.contains("piston.toml"), "{named}: {msg}");
     }
 }
+
+/// A disk of radius 0.1 resting on a fixed plate, the plate moving at 1 m/s to the right (a
+/// conveyor belt: a kinematic body), μ = 0.2.
+fn conveyor(effects: &str) -> String {
+    format!(
+        r#"
+effects = [{effects}]
+[time]
+step = 1e-3
+steps = 1000
+[solver]
+name = "nlgs"
+tol = 1e-10
+[contact]
+friction = 0.2
+[[material]]
+name = "m"
+density = 1000.0
+[[body]]
+polygon = {{ center = [0.0, -0.05], vertices = [[-5.0, -0.05], [5.0, -0.05], [5.0, 0.05], [-5.0, 0.05]] }}
+fixed = true
+velocity = [1.0, 0.0]
+[[body]]
+disk = {{ center = [0.0, 0.1], radius = 0.1 }}
+"#
+    )
+}
+
+#[test]
+fn a_fixed_body_given_a_velocity_drags_a_grain_as_a_conveyor_belt_does() {
+    // Without rotation the disk slides, accelerated by μ g, until it moves with the belt (within
+    // 1e-5 m/s: the plate's f32 outline leaves the first step a gap of some 1e-8 m to close).
+    let (mut sim, steps) = simulation(&conveyor(r#""gravity", "friction""#));
+    for k in 1..=steps {
+        let r = sim.step().unwrap();
+        assert!(r.converged, "step {k}: error {}", r.error);
+        let expected = (0.2 * 9.81 * k as f64 * 1e-3).min(1.0);
+        assert!((sim.velocity(1).x - expected).abs() < 1e-5, "step {k}: {} vs {expected}", sim.velocity(1).x);
+    }
+    assert!((sim.position(0).x - 1.0).abs() < 1e-12 && sim.velocity(0) == DVec2::X, "the belt moves on, unpushed");
+    assert!((sim.position(1).y - 0.1).abs() < 1e-6, "the disk stays on the belt: {}", sim.position(1).y);
+    // A host stops the belt; the disk then slides on it and stops too.
+    sim.set_velocity(0, DVec2::ZERO).unwrap();
+    let stopped = sim.position(0);
+    for _ in 0..600 {
+        sim.step().unwrap();
+    }
+    assert!(sim.velocity(1).length() < 1e-8 && sim.position(0) == stopped, "{}", sim.velocity(1));
+    // A disk that turns slides until its bottom point moves with the belt: v + ω r = 3 μ g t
+    // reaches 1 m/s, and the disk then rolls on at a third of the belt's speed.
+    let (mut sim, steps) = simulation(&conveyor(r#""gravity", "friction", "rotation""#));
+    for _ in 0..steps {
+        assert!(sim.step().unwrap().converged);
+    }
+    assert!((sim.velocity(1).x - 1.0 / 3.0).abs() < 1e-5, "{}", sim.velocity(1).x);
+    assert!((sim.spin(1) - 2.0 / 3.0 / 0.1).abs() < 1e-4, "{}", sim.spin(1));
+    // A fixed body turns at the spin it is given.
+    let text = conveyor(r#""gravity", "friction", "rotation""#).replace("velocity = [1.0, 0.0]", "spin = 0.5");
+    let (mut sim, _) = simulation(&text.replace("center = [0.0, 0.1]", "center = [0.0, 3.0]"));
+    for _ in 0..200 {
+        sim.step().unwrap();
+    }
+    assert!((sim.angle(0) - 0.1).abs() < 1e-12 && sim.spin(0) == 0.5, "{}", sim.angle(0));
+}

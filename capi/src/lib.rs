@@ -640,7 +640,8 @@ pub struct MoreauMotion {
     pub vy: f64,
     /// Spin (rad/s; needs the setting `rotation`).
     pub spin: f64,
-    /// A fixed body never moves (no velocity, no spin).
+    /// A fixed body has infinite mass: it moves only at `vx`, `vy` and `spin` (a kinematic body:
+    /// a conveyor, a paddle), which `moreau_simulation_set_velocity` and `_set_spin` change.
     pub fixed: bool,
 }
 
@@ -1154,7 +1155,7 @@ pub extern "C" fn moreau_simulation_set_wall_motion(
     guard(|| object_mut(sim, "sim")?.0.set_wall_motion(wall, moreau::DVec2::new(vx, vy), spin).map_err(invalid))
 }
 
-/// Sets a body's velocity from the next step on.
+/// Sets a body's velocity from the next step on (a fixed body keeps it: it is driven).
 #[no_mangle]
 pub extern "C" fn moreau_simulation_set_velocity(
     sim: *mut MoreauSimulation,

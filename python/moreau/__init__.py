@@ -409,6 +409,7 @@ class Simulation:
         return self._inner.material(name)
 
     def set_velocity(self, body: int, velocity: Sequence[float]) -> None:
+        """Sets a body's velocity from the next step on; a fixed body keeps it (it is driven)."""
         self._inner.set_velocity(body, tuple(velocity))
 
     def set_spin(self, body: int, spin: float) -> None:

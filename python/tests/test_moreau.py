@@ -370,7 +370,7 @@ def test_a_turning_drum_and_a_polygon_wall_built_from_python_step_as_the_scene_f
     np.testing.assert_allclose(ours.walls()["angle"][:24], 0.4, rtol=1e-12)
     with pytest.raises(moreau.MoreauError, match="3 <= sides"):
         world.add_drum((0.0, 0.0), 0.1, 2, "grain")
-    with pytest.raises(moreau.MoreauError, match="at least 3 finite vertices"):
+    with pytest.raises(moreau.MoreauError, match="a polygon needs at least 3 vertices, got 2"):
         world.add_polygon_wall([(0.0, 0.0), (1.0, 0.0)], "grain")
 
 
@@ -411,6 +411,26 @@ def test_a_periodic_cell_built_from_python_steps_as_the_scene_file_describing_it
     assert len(ours.positions) == k + 1
     with pytest.raises(moreau.MoreauError, match=r"periodic cell x: \[0.2, 0.1\] must be finite with x0 < x1"):
         world.set_periodic(0.2, 0.1)
+
+
+def test_a_fixed_plate_given_a_velocity_from_python_carries_a_grain_as_a_belt_does():
+    world = moreau.World([("rubber", 1000.0)], friction=0.2, gravity=(0.0, -9.81))
+    plate = world.add_polygon((0.0, -0.05), [(-5.0, -0.05), (5.0, -0.05), (5.0, 0.05), (-5.0, 0.05)], "rubber",
+                              fixed=True, velocity=(1.0, 0.0))
+    grain = world.add_disk((0.0, 0.1), 0.1, "rubber")
+    sim = moreau.Simulation(world, h=1e-3, tol=1e-10)
+    for _ in range(300):
+        sim.step()
+    # Dragged at mu g until it moves with the belt at 1 m/s (0.51 s); the belt is never pushed.
+    assert abs(sim.velocities[grain, 0] - 0.2 * 9.81 * 0.3) < 1e-5
+    assert tuple(sim.velocities[plate]) == (1.0, 0.0)
+    sim.set_velocity(plate, (-1.0, 0.0))
+    for _ in range(100):
+        sim.step()
+    assert tuple(sim.velocities[plate]) == (-1.0, 0.0)
+    assert abs(sim.velocities[grain, 0] - 0.2 * 9.81 * 0.2) < 1e-5, "now braked at mu g"
+    with pytest.raises(moreau.MoreauError, match="is fixed: it takes no force or impulse"):
+        sim.apply_force(plate, (1.0, 0.0))
 
 
 def test_a_shuffled_packing_read_from_python_is_numbered_in_rows_and_each_row_finds_its_body(tmp_path):
@@ -537,6 +557,10 @@ def test_a_force_and_a_velocity_set_from_python_act_on_the_next_step():
          "needs the effect moving_walls"),
         (lambda: moreau.World([("glass", 1.0)]).add_disk((0.0, 1.0), 0.1, "glass", spin=1.0),
          "spin 1 needs the effect rotation"),
+        (lambda: moreau.World([("glass", 1.0)]).add_disk((float("nan"), 1.0), 0.1, "glass"),
+         "position [NaN, 1] must be finite"),
+        (lambda: moreau.World([("glass", 1.0)]).add_polygon((0.0, 0.0), [(0.0, 0.0), (1.0, 0.0), (float("nan"), 1.0)], "glass"),
+         "polygon vertex 2 [NaN, 1] is not finite"),
         (lambda: moreau.Simulation.from_scene(PILE).set_velocity(10_000, (0.0, 0.0)), "body 10000 does not exist"),
         (lambda: moreau.Simulation.from_scene(PILE).apply_force(0, (float("inf"), 0.0)), "force of body 0 must be finite"),
         (lambda: moreau.Simulation.from_scene(PILE).add_disk((0.0, 0.1), 0.01, "wood"), 'material "wood" does not exist'),

@@ -213,6 +213,11 @@ impl Grid {
 /// Reads an unstructured-grid `.vtu` file (one inline piece, as moreau writes them).
 pub fn read_grid(path: &Path) -> Result<Grid> {
     use vtkio::model::Piece;
+    // The file's own error first: vtkio words a missing file as an XML error.
+    std::fs::File::open(path).with_context(|| path.display().to_string())?;
+    if path.is_dir() {
+        anyhow::bail!("{}: a folder, not a .vtu file", path.display());
+    }
     let vtk = Vtk::import(path).map_err(|e| anyhow::anyhow!("{}: not a VTK file moreau reads: {e}", path.display()))?;
     let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
         anyhow::bail!("{}: not an unstructured grid (.vtu)", path.display());

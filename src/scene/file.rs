@@ -269,6 +269,8 @@ struct GenerateSpec {
     /// Extra room between grid neighbours (default 2 % of r_max).
     spacing: Option<f64>,
     velocity: Option<P>,
+    /// The grains are fixed, moving at `velocity` (a rough floor, a belt, a shear cell's plate).
+    fixed: Option<bool>,
     seed: Option<u64>,
 }
 
@@ -649,6 +651,7 @@ impl Builder<'_> {
                     }
                 };
                 body.velocity = velocity;
+                body.fixed = spec.fixed.unwrap_or(false);
                 body.tag = layer as u32;
                 let density = world.materials.density[material];
                 world.bodies.add(&body, density).or_else(|m| self.cx.err(g.span(), format!("generate[{k}]"), m))?;

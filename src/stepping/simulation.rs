@@ -243,7 +243,7 @@ pub enum BodyError {
         value: String,
     },
     /// The body is fixed.
-    #[error("body {0} is fixed: it has no velocity to set and takes no force")]
+    #[error("body {0} is fixed: it takes no force or impulse (set its velocity and spin to move it)")]
     Fixed(usize),
     /// The world has no rotation.
     #[error("the world was built without the effect rotation: body {0} has no spin")]
@@ -528,20 +528,25 @@ impl Simulation {
         Ok(k)
     }
 
-    /// Sets a body's velocity (from the next step on).
+    /// Sets a body's velocity (from the next step on); a fixed body keeps it (a kinematic body).
     pub fn set_velocity(&mut self, body: usize, velocity: DVec2) -> Result<(), BodyError> {
-        let k = self.moving_body(body)?;
+        let k = self.body_index(body)?;
         finite(k, "velocity", velocity.is_finite(), velocity)?;
         self.world.bodies.velocity[k] = velocity;
         Ok(())
     }
 
-    /// Sets a body's spin (rad/s); needs the effect rotation.
+    /// Sets a body's spin (rad/s); needs the effect rotation. A fixed body keeps it; a body that
+    /// keeps its angle (`lock_rotation`) has none to set.
     pub fn set_spin(&mut self, body: usize, spin: f64) -> Result<(), BodyError> {
-        let k = self.moving_body(body)?;
+        let k = self.body_index(body)?;
         finite(k, "spin", spin.is_finite(), spin)?;
         if !self.world.bodies.has_rotation() {
             return Err(BodyError::NoRotation(k));
+        }
+        let b = &self.world.bodies;
+        if b.inv_mass[k] > 0.0 && b.inv_inertia[k] == 0.0 {
+            return Err(BodyError::Invalid(format!("body {k} keeps its angle (lock_rotation): it has no spin to set")));
         }
         self.world.bodies.spin[k] = spin;
         Ok(())

@@ -40,7 +40,9 @@ pub struct BodySpec {
     pub spin: f64,
     /// Index of its material.
     pub material: usize,
-    /// A fixed body never moves (infinite mass).
+    /// A fixed body has infinite mass: contacts and forces never move it. It moves only at its
+    /// own velocity and spin, zero unless given (a kinematic body: a conveyor, a paddle, the
+    /// rough plate of a shear cell); two fixed bodies never touch.
     pub fixed: bool,
     /// A free label carried to the outputs (layer number, group…).
     pub tag: u32,
@@ -216,8 +218,14 @@ impl Bodies {
     /// (a polygon must be convex, its vertices in either order).
     pub fn add(&mut self, spec: &BodySpec, density: f64) -> Result<usize, String> {
         let finite = |v: DVec2| v.x.is_finite() && v.y.is_finite();
-        if !finite(spec.center) || !finite(spec.velocity) || !spec.angle.is_finite() || !spec.spin.is_finite() {
-            return Err("position, angle, velocity and spin must be finite".into());
+        let state = [
+            ("position", finite(spec.center), format!("[{}, {}]", spec.center.x, spec.center.y)),
+            ("velocity", finite(spec.velocity), format!("[{}, {}]", spec.velocity.x, spec.velocity.y)),
+            ("angle", spec.angle.is_finite(), spec.angle.to_string()),
+            ("spin", spec.spin.is_finite(), spec.spin.to_string()),
+        ];
+        if let Some((name, _, value)) = state.iter().find(|(_, ok, _)| !ok) {
+            return Err(format!("{name} {value} must be finite"));
         }
         if !(density.is_finite() && density > 0.0) {
             return Err(format!("density {density} must be finite and > 0"));
@@ -241,9 +249,7 @@ impl Bodies {
                 (BodyShape::Disk { radius: r }, area, area * r * r / 2.0, r, spec.center)
             }
             SpecShape::Polygon { vertices } => {
-                if vertices.len() < 3 || !vertices.iter().all(|&v| finite(v)) {
-                    return Err(format!("a polygon needs at least 3 finite vertices, got {}", vertices.len()));
-                }
+                check_vertices(vertices)?;
                 // The hull is computed in f32 (parry2d), which panics on vertices closer than its
                 // tolerance: refuse a polygon smaller than f32 can tell apart at its position.
                 let span = vertices.iter().map(|v| (*v - vertices[0]).length()).fold(0.0, f64::max);
@@ -286,13 +292,13 @@ impl Bodies {
         }
         self.shape.push(shape);
         self.position.push(center);
-        self.velocity.push(if spec.fixed { DVec2::ZERO } else { spec.velocity });
+        self.velocity.push(spec.velocity);
         self.mass.push(mass);
         self.inv_mass.push(if spec.fixed { 0.0 } else { 1.0 / mass });
         if self.rotation {
             self.angle.push(spec.angle);
             let turns = !(spec.fixed || spec.lock_rotation);
-            self.spin.push(if turns { spec.spin } else { 0.0 });
+            self.spin.push(if spec.lock_rotation { 0.0 } else { spec.spin });
             self.inertia.push(inertia);
             self.inv_inertia.push(if turns { 1.0 / inertia } else { 0.0 });
         } else if let BodyShape::Polygon(p) = shape {
@@ -399,6 +405,17 @@ impl Bodies {
     /// The bodies driven by a constant force.
     pub fn driven(&self) -> impl Iterator<Item = usize> + '_ {
         self.force.iter().enumerate().filter(|(_, f)| **f != DVec2::ZERO).map(|(k, _)| k)
+    }
+}
+
+/// Refuses a polygon of fewer than three vertices or with one that is not finite, naming it.
+pub(crate) fn check_vertices(vertices: &[DVec2]) -> Result<(), String> {
+    if vertices.len() < 3 {
+        return Err(format!("a polygon needs at least 3 vertices, got {}", vertices.len()));
+    }
+    match vertices.iter().position(|v| !v.is_finite()) {
+        Some(k) => Err(format!("polygon vertex {k} [{}, {}] is not finite", vertices[k].x, vertices[k].y)),
+        None => Ok(()),
     }
 }
 

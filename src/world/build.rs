@@ -75,9 +75,7 @@ impl Wall {
             WallShape::Segment { a, b } if !finite(*a) || !finite(*b) || a == b => {
                 return Err("segment endpoints must be finite and distinct".into());
             }
-            WallShape::Polygon(p) if p.vertices.len() < 3 || !p.vertices.iter().all(|v| finite(*v)) => {
-                return Err(format!("a polygon needs at least 3 finite vertices, got {}", p.vertices.len()));
-            }
+            WallShape::Polygon(p) => super::bodies::check_vertices(&p.vertices)?,
             _ => {}
         }
         if !finite(self.center) || !self.angle.is_finite() {
@@ -294,6 +292,11 @@ mod tests {
             let error = world.add_wall(wall).unwrap_err().to_string();
             assert!(error.contains(message), "{error:?} should say {message:?}");
         }
+        let corners = [DVec2::ZERO, point, DVec2::new(0.5, f64::NAN)];
+        assert_eq!(Wall::polygon(&corners, None, 0).unwrap_err(), "polygon vertex 2 [0.5, NaN] is not finite");
+        assert_eq!(Wall::polygon(&corners[..2], None, 0).unwrap_err(), "a polygon needs at least 3 vertices, got 2");
+        let thrown = BodySpec { velocity: DVec2::new(1.0, f64::INFINITY), ..BodySpec::disk(DVec2::Y, 0.1, 0) };
+        assert_eq!(world.add_body(&thrown).unwrap_err().to_string(), "velocity [1, inf] must be finite");
         let glass = Interaction { restitution: 1.5, ..law };
         assert!(world.set_interaction("sand", "steel", glass).unwrap_err().to_string().contains("restitution 1.5"));
         assert_eq!(world.set_interaction("sand", "wood", law), Err(WorldError::UnknownMaterial("wood".into())));

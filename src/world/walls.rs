@@ -77,6 +77,7 @@ impl Wall {
     /// A solid convex polygon of world `vertices` (either orientation), its frame at `frame` or
     /// else at the polygon's centroid.
     pub fn polygon(vertices: &[DVec2], frame: Option<DVec2>, material: usize) -> Result<Self, String> {
+        super::bodies::check_vertices(vertices)?;
         let mut tmp = super::Bodies::new(true);
         let centroid_guess = vertices.iter().copied().sum::<DVec2>() / vertices.len().max(1) as f64;
         let rel: Vec<DVec2> = vertices.iter().map(|p| *p - centroid_guess).collect();
