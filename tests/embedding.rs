@@ -288,3 +288,23 @@ fn the_next_steps_problem_is_the_one_the_step_then_solves() {
     let impulses: Vec<f64> = sim.contacts().iter().flat_map(|c| c.impulse).collect();
     assert_eq!(bits(&mine.r), bits(&impulses));
 }
+
+#[test]
+fn a_fixed_body_is_driven_by_its_velocity_and_spin_and_a_locked_one_has_no_spin_to_set() {
+    let mut sim = disk_on_floor(0.3, true, true);
+    let paddle = BodySpec { fixed: true, ..BodySpec::disk(DVec2::new(1.0, 1.0), 0.1, 0) };
+    let paddle = sim.add_body(&paddle).unwrap();
+    let piston = BodySpec { lock_rotation: true, ..BodySpec::disk(DVec2::new(-1.0, 1.0), 0.1, 0) };
+    let piston = sim.add_body(&piston).unwrap();
+    sim.set_velocity(paddle, DVec2::new(0.0, 2.0)).unwrap();
+    sim.set_spin(paddle, 3.0).unwrap();
+    let e = sim.set_spin(piston, 1.0).unwrap_err();
+    assert!(e.to_string().contains("keeps its angle (lock_rotation)"), "{e}");
+    assert_eq!(sim.apply_force(paddle, DVec2::X, 0.0), Err(BodyError::Fixed(paddle)));
+    for _ in 0..100 {
+        sim.step().unwrap();
+    }
+    let h = sim.settings.h;
+    assert!((sim.position(paddle).y - (1.0 + 200.0 * h)).abs() < 1e-12, "{}", sim.position(paddle));
+    assert!((sim.angle(paddle) - 300.0 * h).abs() < 1e-12 && sim.angle(piston) == 0.0);
+}

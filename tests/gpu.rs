@@ -580,6 +580,22 @@ disk = {{ center = [{}, {}], radius = 0.1 }}
         assert!(r.converged && r.max_penetration < 1e-6, "{r:?}");
     }
     assert!(sim.position(4).distance(top) < 1e-6, "the column moved by {}", sim.position(4).distance(top));
+    // A disk on a belt (a fixed plate moving at 1 m/s, μ = 0.2) rolls on at a third of its speed
+    // once its bottom point moves with the belt (0.17 s), as on the CPU (within 1e-4 m/s).
+    let Some(ctx) = common::gpu_context() else { return };
+    let belt = "effects = [\"gravity\", \"friction\", \"rotation\"]\n[time]\nstep = 1e-3\nsteps = 300\n[solver]\ntol = 1e-6\n\
+                [contact]\nfriction = 0.2\n[[material]]\nname = \"m\"\ndensity = 1000.0\n[[body]]\npolygon = { center = [0.0, -0.05], \
+                vertices = [[-5.0, -0.05], [5.0, -0.05], [5.0, 0.05], [-5.0, 0.05]] }\nfixed = true\nvelocity = [1.0, 0.0]\n\
+                [[body]]\ndisk = { center = [0.0, 0.1], radius = 0.1 }\n";
+    let (mut sim, steps) = gpu_simulation(ctx, belt);
+    let mut on_gpu = 0;
+    for _ in 0..steps {
+        let r = sim.step().unwrap();
+        assert!(r.converged, "{r:?}");
+        on_gpu += r.gpu_iterations;
+    }
+    assert!(on_gpu > 0, "no iteration ran on the GPU");
+    assert!((sim.velocity(1).x - 1.0 / 3.0).abs() < 1e-4 && sim.velocity(0) == moreau::DVec2::X, "{}", sim.velocity(1));
 }
 
 /// Buffers are taken from the context's pool and written in place: a solve after others of

@@ -123,3 +123,40 @@ fn a_cell_too_short_for_its_grains_is_refused() {
     let Err(e) = scene::parse(&text, Path::new("periodic.toml")) else { panic!("accepted") };
     assert!(e.to_string().contains("periodic.x"), "{e}");
 }
+
+/// `[output] profile = true`: `moreau run` writes the moving grains by height every `every` steps
+/// and at the last, one mean diameter a layer.
+#[test]
+fn a_run_writes_the_height_profile_of_its_grains() {
+    // Two rows of five disks sliding at 1 and 2 m/s, untouched (no gravity, 1 mm apart).
+    let rows: Vec<(f64, f64, f64)> =
+        (0..10).map(|k| (0.01 + 0.02 * (k % 5) as f64, 0.01 + 0.021 * (k / 5) as f64, 1.0 + (k / 5) as f64)).collect();
+    let dir = std::env::temp_dir().join(format!("moreau_profile_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("rows.toml");
+    std::fs::write(&scene, disks(&rows, CELL) + "[output]\nevery = 2\nprofile = true\n").unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_moreau"))
+        .args(["run", scene.to_str().unwrap(), "--steps", "5", "--device", "cpu", "--quiet", "--out"])
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(dir.join("out/profile.csv")).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("step,time,y_low,y_high,grains,solid_fraction,vx,vy,spin,velocity_fluctuation"));
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+    // Steps 2, 4 and 5 (the last), three layers 2 cm high each: a row's centres in each of the
+    // two lower ones; the upper row's disks reach 1 mm into the third.
+    assert_eq!(rows.iter().map(|r| r[0]).collect::<Vec<_>>(), [2.0, 2.0, 2.0, 4.0, 4.0, 4.0, 5.0, 5.0, 5.0]);
+    // Five caps of height h cut from disks of radius r: r² acos((r − h)/r) − (r − h) √(2rh − h²).
+    let r = 0.01f64;
+    let area = |h: f64| 5.0 * (r * r * ((r - h) / r).acos() - (r - h) * (2.0 * r * h - h * h).sqrt());
+    let (cut, full) = (area(0.001) / (0.1 * 0.02), 5.0 * std::f64::consts::PI * 1e-4 / (0.1 * 0.02));
+    for (n, r) in rows.iter().enumerate() {
+        let (grains, vx, fraction) = [(5.0, 1.0, full), (5.0, 2.0, full - cut), (0.0, 0.0, cut)][n % 3];
+        assert_eq!(r[4], grains, "{r:?}");
+        assert!((r[6] - vx).abs() < 1e-12 && r[9].abs() < 1e-12, "{r:?}");
+        assert!((r[5] - fraction).abs() < 1e-9, "{r:?} against {fraction}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -326,6 +326,16 @@ class Simulation:
         "Simulating a scene")."""
         return self._inner.measures()
 
+    def height_profile(self, thickness: Optional[float] = None) -> Dict[str, np.ndarray]:
+        """The moving grains by height, in layers ``thickness`` high (default: one mean
+        diameter) from the floor of the region they occupy to the top grain: ``y_low``,
+        ``y_high``, ``grains``, ``solid_fraction``, mass-weighted mean ``vx``, ``vy``, ``spin``
+        and ``velocity_fluctuation`` (``sqrt(<|v - mean|^2>)``), an array each, bottom first."""
+        layers = self._inner.height_profile(thickness)
+        keys = ("y_low", "y_high", "grains", "solid_fraction", "vx", "vy", "spin", "velocity_fluctuation")
+        return {k: np.array([layer[k] for layer in layers], dtype=np.int64 if k == "grains" else np.float64)
+                for k in keys}
+
     @property
     def time(self) -> float:
         return self._inner.time

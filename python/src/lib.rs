@@ -497,6 +497,18 @@ impl Simulation {
         json_dict(py, &self.0.measures())
     }
 
+    /// The moving grains by height, layers `thickness` high (default: one mean diameter): a list
+    /// of dicts, one a layer, bottom first.
+    #[pyo3(signature = (thickness = None))]
+    fn height_profile<'py>(&self, py: Python<'py>, thickness: Option<f64>) -> PyResult<Bound<'py, PyAny>> {
+        let thickness = thickness.unwrap_or_else(|| self.0.world.mean_diameter());
+        if !(thickness.is_finite() && thickness > 0.0) {
+            return Err(error(format!("thickness {thickness} must be finite and > 0")));
+        }
+        let json = serde_json::to_string(&self.0.height_profile(thickness)).map_err(error)?;
+        py.import("json")?.call_method1("loads", (json,))
+    }
+
     #[getter]
     fn time(&self) -> f64 {
         self.0.time()

@@ -403,6 +403,13 @@ def test_a_periodic_cell_built_from_python_steps_as_the_scene_file_describing_it
     np.testing.assert_array_equal(ours.positions, theirs.positions)
     assert ours.positions[:, 0].min() >= 0.0 and ours.positions[:, 0].max() < 0.2
     assert (ours.velocities[:, 0] > 0.3).all(), "still sliding right, through the boundary"
+    profile = ours.height_profile()
+    assert profile["grains"].sum() == 10 and profile["y_low"][0] == 0.0, "from the floor up"
+    filled = profile["grains"] > 0
+    np.testing.assert_allclose(profile["vx"][filled].min(), ours.velocities[:, 0].min(), rtol=0.2)
+    assert ((profile["solid_fraction"] > 0) & (profile["solid_fraction"] < 1)).all()
+    with pytest.raises(moreau.MoreauError, match="thickness 0 must be finite and > 0"):
+        ours.height_profile(0.0)
     # A grain added to the running cell comes in too; one wider than a quarter of it is refused.
     k = ours.add_disk((0.45, 0.1), 0.009, "grain")
     np.testing.assert_allclose(ours.positions[k, 0], 0.05, rtol=1e-12)

@@ -170,6 +170,7 @@ pub fn run_command(a: RunArgs) -> Result<()> {
     let per_step = PerStep {
         dump_problem: a.dump_problem.clone(),
         wall_forces: scene.output.wall_forces,
+        profile_every: if scene.output.profile { scene.output.every } else { 0 },
         checkpoint_every: scene.output.checkpoint_every,
         scene_name: scene.name.clone(),
         fingerprint,
@@ -273,6 +274,8 @@ fn apply_overrides(scene: &mut scene::Scene, a: &RunArgs) -> Result<()> {
 struct PerStep {
     dump_problem: Vec<usize>,
     wall_forces: bool,
+    /// Write profile.csv every this many steps (0: never) and at the last.
+    profile_every: usize,
     checkpoint_every: usize,
     scene_name: String,
     /// The scene file's fingerprint (checkpoints only).
@@ -328,6 +331,9 @@ impl PerStep {
         }
         if self.vtk_every > 0 && (report.step.is_multiple_of(self.vtk_every) || report.step == self.last) {
             output.vtk(sim)?;
+        }
+        if self.profile_every > 0 && (report.step.is_multiple_of(self.profile_every) || report.step == self.last) {
+            output.record_profile(sim)?;
         }
         if report.step == self.picture_step {
             let path = output.dir.join(format!("state_{:06}.png", report.step));

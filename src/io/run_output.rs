@@ -64,6 +64,21 @@ struct WallRow {
     moment: f64,
 }
 
+/// One row of `profile.csv`: a layer of the height profile at a step.
+#[derive(Serialize)]
+struct ProfileRow {
+    step: usize,
+    time: f64,
+    y_low: f64,
+    y_high: f64,
+    grains: usize,
+    solid_fraction: f64,
+    vx: f64,
+    vy: f64,
+    spin: f64,
+    velocity_fluctuation: f64,
+}
+
 /// One row of `driven.csv`: a body driven by a constant force (a piston), its motion, the force
 /// imposed on it and the contacts' mean force on it.
 #[derive(Serialize)]
@@ -256,6 +271,7 @@ pub struct RunOutput {
     csv: csv::Writer<File>,
     walls_csv: Option<csv::Writer<File>>,
     driven_csv: Option<csv::Writer<File>>,
+    profile_csv: Option<csv::Writer<File>>,
     grains: Vec<(f64, PathBuf)>,
     contacts: Vec<(f64, PathBuf)>,
     walls: Vec<(f64, PathBuf)>,
@@ -275,6 +291,7 @@ impl RunOutput {
             csv,
             walls_csv: None,
             driven_csv: None,
+            profile_csv: None,
             grains: Vec::new(),
             contacts: Vec::new(),
             walls: Vec::new(),
@@ -322,6 +339,27 @@ impl RunOutput {
                 imposed_fy: b.force[k].y,
                 contact_fx: load.force[0],
                 contact_fy: load.force[1],
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Rows of profile.csv for the step just taken: the moving grains by height, in layers one
+    /// mean diameter thick.
+    pub fn record_profile(&mut self, sim: &Simulation) -> Result<()> {
+        let csv = writer(&mut self.profile_csv, &self.dir.join("profile.csv"))?;
+        for l in sim.height_profile(sim.world.mean_diameter()) {
+            csv.serialize(ProfileRow {
+                step: sim.steps_done(),
+                time: sim.time(),
+                y_low: l.y_low,
+                y_high: l.y_high,
+                grains: l.grains,
+                solid_fraction: l.solid_fraction,
+                vx: l.vx,
+                vy: l.vy,
+                spin: l.spin,
+                velocity_fluctuation: l.velocity_fluctuation,
             })?;
         }
         Ok(())
@@ -384,7 +422,7 @@ impl RunOutput {
     /// Flushes the CSV files, closes the VTK series and writes `summary`.
     pub fn finish(mut self, summary: &RunSummary) -> Result<()> {
         self.csv.flush()?;
-        for w in [&mut self.walls_csv, &mut self.driven_csv].into_iter().flatten() {
+        for w in [&mut self.walls_csv, &mut self.driven_csv, &mut self.profile_csv].into_iter().flatten() {
             w.flush()?;
         }
         let path = self.dir.join("summary.json");
@@ -413,6 +451,7 @@ fn is_run_output(name: &str) -> bool {
         "steps.csv"
             | "walls.csv"
             | "driven.csv"
+            | "profile.csv"
             | "summary.json"
             | "grains.pvd"
             | "contacts.pvd"

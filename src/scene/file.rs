@@ -134,6 +134,7 @@ struct OutputSpec {
     picture_step: Option<usize>,
     checkpoint_every: Option<usize>,
     wall_forces: Option<bool>,
+    profile: Option<bool>,
 }
 
 #[derive(Deserialize, Default, Clone, Copy)]
@@ -851,6 +852,7 @@ impl Builder<'_> {
             picture_step: output.and_then(|o| o.picture_step),
             checkpoint_every: output.and_then(|o| o.checkpoint_every).unwrap_or(0),
             wall_forces: output.and_then(|o| o.wall_forces).unwrap_or(false),
+            profile: output.and_then(|o| o.profile).unwrap_or(false),
         })
     }
 }

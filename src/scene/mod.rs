@@ -29,6 +29,9 @@ pub struct OutputSettings {
     pub checkpoint_every: usize,
     /// Write `walls.csv`: each wall's position and the force and moment the grains put on it.
     pub wall_forces: bool,
+    /// Write `profile.csv` every `every` steps and at the last: the moving grains by height, in
+    /// layers one mean diameter thick (`Simulation::height_profile`).
+    pub profile: bool,
 }
 
 /// A loaded scene, ready to simulate.

@@ -17,6 +17,11 @@
 //!   contacts between two moving grains (walls and fixed bodies left out), trace 1: ½ I for
 //!   contact directions spread evenly. Its **anisotropy** `a = 2 (λ₁ − λ₂)` is the `a` of the
 //!   directions' density `(1 + a cos 2(θ − θ_F)) / 2π`: 0 isotropic, 2 for one direction.
+//! * **Height profile** (a flow down a slope, a shear cell): the moving grains in layers of a
+//!   given thickness from the floor of the occupied region (as for the packing fraction) up to
+//!   the top grain: solid fraction (disks cut exactly at the layers' bounds, a polygon counted
+//!   whole in its centre's layer), mass-weighted mean velocity and spin of the grains whose
+//!   centres lie in the layer, and the velocity fluctuation `√⟨|v − v̄|²⟩` about that mean.
 
 use glam::DVec2;
 use serde::Serialize;
@@ -114,6 +119,12 @@ impl Simulation {
 
     /// The area of the region the grains occupy (module docs).
     fn occupied_area(&self, grains: &[usize]) -> f64 {
+        let (x0, x1, y0, top) = self.occupied_region(grains);
+        ((x1 - x0) * (top - y0)).max(0.0)
+    }
+
+    /// The region the grains occupy (module docs): `(x0, x1, floor, top)`.
+    fn occupied_region(&self, grains: &[usize]) -> (f64, f64, f64, f64) {
         let b = &self.world.bodies;
         let top = grains.iter().map(|&k| b.position[k].y + b.bounding_radius[k]).fold(f64::NEG_INFINITY, f64::max);
         let wall_points: Vec<DVec2> = self.world.walls.iter().flat_map(|w| w.world_points()).collect();
@@ -133,8 +144,97 @@ impl Simulation {
             )
         };
         let (x0, x1) = self.world.periodic.map_or((x0, x1), |p| (p.x0, p.x1));
-        ((x1 - x0) * (top - y0)).max(0.0)
+        (x0, x1, y0, top)
     }
+
+    /// The moving grains by height, in layers `thickness` high from the floor of the region they
+    /// occupy up to the top grain (module docs); empty without moving grains or for a thickness
+    /// that is not a positive number.
+    pub fn height_profile(&self, thickness: f64) -> Vec<ProfileLayer> {
+        let b = &self.world.bodies;
+        let grains: Vec<usize> = (0..b.len()).filter(|&k| b.inv_mass[k] > 0.0).collect();
+        if grains.is_empty() || !(thickness.is_finite() && thickness > 0.0) {
+            return Vec::new();
+        }
+        let (x0, x1, floor, top) = self.occupied_region(&grains);
+        // Rounding must not open a layer above the top grain's.
+        let count = ((top - floor) / thickness * (1.0 - 1e-12)).ceil().clamp(1.0, 1e6) as usize;
+        let layer_of = |y: f64| (((y - floor) / thickness).floor().max(0.0) as usize).min(count - 1);
+        let mut layers: Vec<ProfileLayer> = (0..count)
+            .map(|n| ProfileLayer {
+                y_low: floor + n as f64 * thickness,
+                y_high: floor + (n + 1) as f64 * thickness,
+                ..ProfileLayer::default()
+            })
+            .collect();
+        // Sums of m, m v, m ω and the solid area, then the means.
+        let mut mass = vec![0.0; count];
+        for &k in &grains {
+            let (y, m) = (b.position[k].y, b.mass[k]);
+            let l = &mut layers[layer_of(y)];
+            l.grains += 1;
+            mass[layer_of(y)] += m;
+            l.vx += m * b.velocity[k].x;
+            l.vy += m * b.velocity[k].y;
+            l.spin += m * b.spin_of(k);
+            match b.shape[k] {
+                crate::world::BodyShape::Disk { radius } => {
+                    for l in layers.iter_mut().filter(|l| l.y_high > y - radius && l.y_low < y + radius) {
+                        l.solid_fraction += disk_area_between(y, radius, l.y_low, l.y_high);
+                    }
+                }
+                crate::world::BodyShape::Polygon(_) => {
+                    l.solid_fraction += m / self.world.materials.density[b.material[k] as usize];
+                }
+            }
+        }
+        for (l, &m) in layers.iter_mut().zip(&mass) {
+            l.solid_fraction /= (x1 - x0) * thickness;
+            if m > 0.0 {
+                (l.vx, l.vy, l.spin) = (l.vx / m, l.vy / m, l.spin / m);
+            }
+        }
+        for &k in &grains {
+            let n = layer_of(b.position[k].y);
+            let mean = DVec2::new(layers[n].vx, layers[n].vy);
+            layers[n].velocity_fluctuation += b.mass[k] * (b.velocity[k] - mean).length_squared();
+        }
+        for (l, &m) in layers.iter_mut().zip(&mass) {
+            l.velocity_fluctuation = if m > 0.0 { (l.velocity_fluctuation / m).sqrt() } else { 0.0 };
+        }
+        layers
+    }
+}
+
+/// One layer of [`Simulation::height_profile`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct ProfileLayer {
+    /// The layer's bottom (m).
+    pub y_low: f64,
+    /// Its top (m).
+    pub y_high: f64,
+    /// Moving grains whose centres lie in it.
+    pub grains: usize,
+    /// The grains' area within the layer over the layer's area.
+    pub solid_fraction: f64,
+    /// Mass-weighted mean velocity of its grains, x (m/s; 0 without a grain).
+    pub vx: f64,
+    /// The same, y.
+    pub vy: f64,
+    /// Mass-weighted mean spin (rad/s).
+    pub spin: f64,
+    /// `√⟨|v − v̄|²⟩`, mass-weighted, about the layer's mean velocity (m/s).
+    pub velocity_fluctuation: f64,
+}
+
+/// The area of the disk of centre height `y` and radius `r` between the heights `low` and `high`.
+fn disk_area_between(y: f64, r: f64, low: f64, high: f64) -> f64 {
+    // The area below height y + t r is r² (t √(1 − t²) + asin t + π/2).
+    let below = |h: f64| {
+        let t = ((h - y) / r).clamp(-1.0, 1.0);
+        r * r * (t * (1.0 - t * t).sqrt() + t.asin() + std::f64::consts::FRAC_PI_2)
+    };
+    (below(high) - below(low)).max(0.0)
 }
 
 /// The load the grains put on one wall (or body) over the last step: mean force and its moment
@@ -235,5 +335,45 @@ mod tests {
         assert!((mass - 1.0).abs() < 1e-12, "{mass}");
         assert!((first_moment - 1.0).abs() < 0.02, "{first_moment}");
         assert_eq!(super::normal_force_pdf(&[0.0, -1.0, f64::NAN], 10).2, 0);
+    }
+
+    /// Three rows of ten disks (radius 0.05) in a periodic cell 1 m long, row n moving at
+    /// n m/s along x with ±0.1 m/s across, on a fixed row that the profile leaves out.
+    #[test]
+    fn the_height_profile_cuts_disks_at_the_layers_and_averages_each_layers_grains() {
+        use crate::world::{BodySpec, Interaction, World};
+        use glam::DVec2;
+        let mut world = World::in_code(vec![("g".into(), 1000.0)], Interaction::default(), None, true, false).unwrap();
+        world.set_periodic(0.0, 1.0).unwrap();
+        for row in 0..4 {
+            for k in 0..10 {
+                let center = DVec2::new(0.05 + 0.1 * k as f64, -0.05 + 0.1 * row as f64);
+                let across = if k % 2 == 0 { 0.1 } else { -0.1 };
+                let velocity = DVec2::new(row as f64 - 1.0, across);
+                let spec = BodySpec { velocity, spin: 2.0, fixed: row == 0, ..BodySpec::disk(center, 0.05, 0) };
+                world.add_body(&spec).unwrap();
+            }
+        }
+        let settings = crate::stepping::StepSettings::for_world(&world, 1e-3);
+        let sim = crate::Simulation::new(world, settings).unwrap();
+        let full = std::f64::consts::PI * 0.05 * 0.05 * 10.0 / 0.1;
+        let rows = sim.height_profile(0.1);
+        assert_eq!(rows.len(), 3);
+        for (n, l) in rows.iter().enumerate() {
+            assert!((l.y_low - 0.1 * n as f64).abs() < 1e-15 && (l.y_high - l.y_low - 0.1).abs() < 1e-15);
+            assert_eq!(l.grains, 10);
+            assert!((l.solid_fraction - full).abs() < 1e-12, "{}", l.solid_fraction);
+            assert!((l.vx - n as f64).abs() < 1e-15 && l.vy.abs() < 1e-15 && (l.spin - 2.0).abs() < 1e-15);
+            assert!((l.velocity_fluctuation - 0.1).abs() < 1e-15, "{}", l.velocity_fluctuation);
+        }
+        // Half as thick: each layer holds half of one row's disks; the centres lie on the bounds
+        // and count in the upper layer.
+        let halves = sim.height_profile(0.05);
+        assert_eq!(halves.len(), 6);
+        for (n, l) in halves.iter().enumerate() {
+            assert!((l.solid_fraction - full).abs() < 1e-12, "layer {n}: {}", l.solid_fraction);
+            assert_eq!(l.grains, if n % 2 == 1 { 10 } else { 0 }, "layer {n}");
+        }
+        assert!(sim.height_profile(0.0).is_empty() && sim.height_profile(f64::NAN).is_empty());
     }
 }

@@ -11,7 +11,7 @@ mod simulation;
 mod warm_start;
 
 pub use checkpoint::{CarriedContact, Checkpoint, WallState, CHECKPOINT_FORMAT};
-pub use measures::{normal_force_pdf, Measures, WallLoad};
+pub use measures::{normal_force_pdf, Measures, ProfileLayer, WallLoad};
 pub use simulation::{
     BodyError, ContactState, Simulation, StepError, StepReport, StepSettings, DEFAULT_ALERT_FRACTION,
     DEFAULT_PROJECTION_SLACK,
