@@ -215,6 +215,23 @@ typedef struct MoreauMeasures {
   double anisotropy;
 } MoreauMeasures;
 
+// One layer of the height profile (`moreau_simulation_copy_profile`): the moving grains whose
+// centres lie in `[y_low, y_high)`.
+typedef struct MoreauProfileLayer {
+  double y_low;
+  double y_high;
+  // Moving grains centred in the layer.
+  size_t grains;
+  // The grains' area within the layer (disks cut at its bounds) over the layer's area.
+  double solid_fraction;
+  // Mass-weighted mean velocity and spin of its grains.
+  double vx;
+  double vy;
+  double spin;
+  // √⟨|v − v̄|²⟩ about that mean (m/s).
+  double velocity_fluctuation;
+} MoreauProfileLayer;
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -534,6 +551,18 @@ enum MoreauStatus moreau_simulation_add_disk(struct MoreauSimulation *sim,
 // The granular measures of the current state (the last step's contacts).
 enum MoreauStatus moreau_simulation_measures(const struct MoreauSimulation *sim,
                                              struct MoreauMeasures *out);
+
+// The layers of the height profile `moreau_simulation_copy_profile` gives for `thickness` (0
+// for NULL, no moving grain or a thickness that is not a number ≥ 0).
+size_t moreau_simulation_profile_layers(const struct MoreauSimulation *sim, double thickness);
+
+// Copies the moving grains by height, in layers `thickness` high (0: one mean diameter) from the
+// floor of the region they occupy to the top grain, bottom first, into `layers`, which holds
+// `len >= moreau_simulation_profile_layers(sim, thickness)` (README, `profile.csv`).
+enum MoreauStatus moreau_simulation_copy_profile(const struct MoreauSimulation *sim,
+                                                 double thickness,
+                                                 struct MoreauProfileLayer *layers,
+                                                 size_t len);
 
 // Writes the state between steps as a checkpoint file (JSON); with `scene` (may be NULL),
 // stamped with that scene file's identity, so that `moreau run SCENE --restart` goes on from it.

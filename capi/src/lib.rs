@@ -197,6 +197,25 @@ pub struct MoreauMeasures {
     pub anisotropy: f64,
 }
 
+/// One layer of the height profile (`moreau_simulation_copy_profile`): the moving grains whose
+/// centres lie in `[y_low, y_high)`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MoreauProfileLayer {
+    pub y_low: f64,
+    pub y_high: f64,
+    /// Moving grains centred in the layer.
+    pub grains: usize,
+    /// The grains' area within the layer (disks cut at its bounds) over the layer's area.
+    pub solid_fraction: f64,
+    /// Mass-weighted mean velocity and spin of its grains.
+    pub vx: f64,
+    pub vy: f64,
+    pub spin: f64,
+    /// √⟨|v − v̄|²⟩ about that mean (m/s).
+    pub velocity_fluctuation: f64,
+}
+
 /// One contact of the last step.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default)]
@@ -1253,6 +1272,48 @@ pub extern "C" fn moreau_simulation_measures(sim: *const MoreauSimulation, out: 
     })
 }
 
+/// The layers of the height profile `moreau_simulation_copy_profile` gives for `thickness` (0
+/// for NULL, no moving grain or a thickness that is not a number ≥ 0).
+#[no_mangle]
+pub extern "C" fn moreau_simulation_profile_layers(sim: *const MoreauSimulation, thickness: f64) -> usize {
+    peek(sim).map_or(0, |s| profile(&s.0, thickness).len())
+}
+
+/// Copies the moving grains by height, in layers `thickness` high (0: one mean diameter) from the
+/// floor of the region they occupy to the top grain, bottom first, into `layers`, which holds
+/// `len >= moreau_simulation_profile_layers(sim, thickness)` (README, `profile.csv`).
+#[no_mangle]
+pub extern "C" fn moreau_simulation_copy_profile(
+    sim: *const MoreauSimulation,
+    thickness: f64,
+    layers: *mut MoreauProfileLayer,
+    len: usize,
+) -> MoreauStatus {
+    guard(|| {
+        let sim = &object(sim, "sim")?.0;
+        if !(thickness.is_finite() && thickness >= 0.0) {
+            return fail(MoreauStatus::InvalidArgument, format!("thickness {thickness} must be finite and >= 0"));
+        }
+        copy_out(&profile(sim, thickness), layers, len, "layers")
+    })
+}
+
+/// The height profile for `thickness` (0: one mean diameter) as C's layers.
+fn profile(sim: &Simulation, thickness: f64) -> Vec<MoreauProfileLayer> {
+    let thickness = if thickness == 0.0 { sim.world.mean_diameter() } else { thickness };
+    let layer = |l: moreau::stepping::ProfileLayer| MoreauProfileLayer {
+        y_low: l.y_low,
+        y_high: l.y_high,
+        grains: l.grains,
+        solid_fraction: l.solid_fraction,
+        vx: l.vx,
+        vy: l.vy,
+        spin: l.spin,
+        velocity_fluctuation: l.velocity_fluctuation,
+    };
+    sim.height_profile(thickness).into_iter().map(layer).collect()
+}
+
 /// Writes the state between steps as a checkpoint file (JSON); with `scene` (may be NULL),
 /// stamped with that scene file's identity, so that `moreau run SCENE --restart` goes on from it.
 #[no_mangle]
@@ -1502,6 +1563,20 @@ mod tests {
         assert_eq!(moreau_simulation_set_spin(sim, 0, 1.0), MoreauStatus::InvalidArgument);
         assert!(last_error().contains("without the effect rotation"), "{}", last_error());
         assert_eq!(moreau_simulation_body_count(sim), 2);
+        // The two disks (centres at y = 1) by layers of their diameter from the drum's bottom
+        // (y = -0.1): both in the sixth, the others empty.
+        assert_eq!(moreau_simulation_profile_layers(sim, 0.0), 6);
+        let mut layers = [MoreauProfileLayer::default(); 6];
+        assert_eq!(moreau_simulation_copy_profile(sim, 0.0, layers.as_mut_ptr(), 5), MoreauStatus::InvalidArgument);
+        assert!(last_error().contains("layers: buffer of 5 too short for 6"), "{}", last_error());
+        assert_eq!(
+            moreau_simulation_copy_profile(sim, f64::NAN, layers.as_mut_ptr(), 6),
+            MoreauStatus::InvalidArgument
+        );
+        assert_eq!(moreau_simulation_copy_profile(sim, 0.0, layers.as_mut_ptr(), 6), MoreauStatus::Ok);
+        assert_eq!(layers.map(|l| l.grains), [0, 0, 0, 0, 0, 2]);
+        let disks = 2.0 * std::f64::consts::PI * 0.01 / (2.0 * 0.2);
+        assert!((layers[5].solid_fraction - disks).abs() < 1e-12 && layers[0].y_low == -0.1, "{layers:?}");
         moreau_simulation_free(sim);
         moreau_world_free(world);
     }
