@@ -84,6 +84,7 @@ fn a_run_that_blows_up_stops_at_the_step_and_keeps_its_outputs() {
     let (o, out) = run_scene("runaway", &disk_scene("1e-3", "0.01", "0.0", "-1e4", false), &[]);
     refused(&o, &["body 0 ran away", "step ", "is kept"]);
     let e = stderr(&o);
+    assert!(!e.contains("squeezed"), "nothing here moves by prescription: {e}");
     let step: usize = e.split("step ").nth(1).and_then(|s| s.split(':').next()).and_then(|s| s.parse().ok()).unwrap();
     assert!(step > 1000, "{e}");
     let csv = std::fs::read_to_string(out.join("steps.csv")).unwrap();
@@ -92,6 +93,19 @@ fn a_run_that_blows_up_stops_at_the_step_and_keeps_its_outputs() {
     assert!(summary.contains("\"failure\"") && summary.contains("ran away"), "{summary}");
     let last_good = out.join(format!("grains_{:06}.vtu", step - 1));
     assert!(last_good.exists(), "the last good state is written as {}", last_good.display());
+}
+
+/// A fixed box driven at 1 m/s pushes a disk into a wall: no impulse can hold the squeeze, and
+/// the run stops naming that cause, not only the time step.
+#[test]
+fn a_grain_squeezed_by_a_driven_fixed_body_stops_the_run_naming_the_squeeze() {
+    let scene = "effects = [\"gravity\", \"friction\", \"rotation\"]\n[time]\nstep = 1e-3\nsteps = 600\n\
+                 [solver]\nmax_iter = 500\n[contact]\nfriction = 0.3\n[[material]]\nname = \"m\"\ndensity = 1000.0\n\
+                 [[wall]]\nsegment = [[-1.0, 0.0], [1.0, 0.0]]\n[[wall]]\nsegment = [[0.5, 0.0], [0.5, 1.0]]\n\
+                 [[body]]\nregular = { center = [0.0, 0.1], radius = 0.1, sides = 4, angle = 0.7853981633974483 }\n\
+                 fixed = true\nvelocity = [1.0, 0.0]\n[[body]]\ndisk = { center = [0.3, 0.05], radius = 0.05 }\n";
+    let (o, _) = run_scene("squeeze", scene, &[]);
+    refused(&o, &["body 1 ran away", "squeezed between walls or fixed bodies whose motion is prescribed"]);
 }
 
 #[test]

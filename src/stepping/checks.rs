@@ -171,9 +171,18 @@ pub fn check_state(start: &[DVec2], world: &World, extent: f64) -> Result<(), St
         }
         let moved = b.position[k].distance(*from);
         if moved > RUNAWAY * extent {
+            // A grain caught between two prescribed motions has no finite impulse to stop it.
+            let driven = (0..b.len())
+                .any(|j| b.inv_mass[j] == 0.0 && (b.velocity[j] != DVec2::ZERO || b.spin_of(j) != 0.0))
+                || world.walls.iter().any(|w| w.is_moving());
+            let squeeze = if driven {
+                ", or it is squeezed between walls or fixed bodies whose motion is prescribed, which no contact force can stop"
+            } else {
+                ""
+            };
             return Err(format!(
                 "body {k} ran away: it moved {moved:.3e} m in one step, more than {RUNAWAY:e} times the scene's extent \
-                 ({extent:.3e} m); the time step is too large for the forces"
+                 ({extent:.3e} m); the time step is too large for the forces{squeeze}"
             ));
         }
     }
