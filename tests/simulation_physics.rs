@@ -389,6 +389,7 @@ fn scenes_refuse_a_force_on_a_fixed_body_and_a_mass_that_is_not_positive() {
         ("mass = 2.0", "mass = -2.0"),
         ("mass = 2.0", "mass = 0.0"),
         ("force = [0.0, -500.0]", "force = [0.0, nan]"),
+        ("lock_rotation = true", "lock_rotation = true\nspin = 2.0"),
     ] {
         let text = piston_on_lattice(-500.0).replace(change, named);
         let e = scene::parse(&text, Path::new("piston.toml")).err().unwrap_or_else(|| panic!("{named} accepted"));

@@ -434,9 +434,19 @@ class Simulation:
         self._inner.apply_force(body, tuple(force), torque)
 
     def add_disk(self, center: Sequence[float], radius: float, material: str,
-                 velocity: Sequence[float] = (0.0, 0.0)) -> int:
-        """Adds a disk between steps; returns its index."""
-        return self._inner.add_disk(tuple(center), radius, material, tuple(velocity))
+                 velocity: Sequence[float] = (0.0, 0.0), spin: float = 0.0, fixed: bool = False,
+                 tag: int = 0) -> int:
+        """Adds a disk between steps (a fixed one moves only at its velocity and spin); returns
+        its index."""
+        return self._inner.add_disk(tuple(center), radius, material, tuple(velocity), spin, fixed, tag)
+
+    def add_polygon(self, center: Sequence[float], vertices: Sequence[Sequence[float]], material: str,
+                    angle: float = 0.0, velocity: Sequence[float] = (0.0, 0.0), spin: float = 0.0,
+                    fixed: bool = False, tag: int = 0) -> int:
+        """Adds a convex polygon between steps (vertices relative to ``center``, in either
+        order); returns its index."""
+        return self._inner.add_polygon(tuple(center), [tuple(v) for v in vertices], material, angle,
+                                       tuple(velocity), spin, fixed, tag)
 
     def remove_body(self, body: int) -> None:
         """Removes a body; the bodies after it move down one index, its contacts go."""

@@ -622,10 +622,42 @@ impl Simulation {
         self.0.apply_force(body, vec2(force), torque).map_err(error)
     }
 
-    /// Adds a disk between steps; returns its index.
-    #[pyo3(signature = (center, radius, material, velocity = (0.0, 0.0)))]
-    fn add_disk(&mut self, center: (f64, f64), radius: f64, material: &str, velocity: (f64, f64)) -> PyResult<usize> {
-        self.0.add_disk(vec2(center), radius, material, vec2(velocity)).map_err(error)
+    /// Adds a disk between steps, checked as `World.add_disk`'s; returns its index.
+    #[pyo3(signature = (center, radius, material, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0))]
+    #[allow(clippy::too_many_arguments)]
+    fn add_disk(
+        &mut self,
+        center: (f64, f64),
+        radius: f64,
+        material: &str,
+        velocity: (f64, f64),
+        spin: f64,
+        fixed: bool,
+        tag: u32,
+    ) -> PyResult<usize> {
+        let shape = BodySpec::disk(vec2(center), radius, 0);
+        let spec = body_spec(&self.0.world, shape, material, 0.0, velocity, spin, fixed, tag)?;
+        self.0.add_body(&spec).map_err(error)
+    }
+
+    /// Adds a convex polygon between steps (vertices relative to `center`), checked as
+    /// `World.add_polygon`'s; returns its index.
+    #[pyo3(signature = (center, vertices, material, angle = 0.0, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0))]
+    #[allow(clippy::too_many_arguments)]
+    fn add_polygon(
+        &mut self,
+        center: (f64, f64),
+        vertices: Vec<(f64, f64)>,
+        material: &str,
+        angle: f64,
+        velocity: (f64, f64),
+        spin: f64,
+        fixed: bool,
+        tag: u32,
+    ) -> PyResult<usize> {
+        let shape = BodySpec::polygon(vec2(center), vertices.into_iter().map(vec2).collect(), 0);
+        let spec = body_spec(&self.0.world, shape, material, angle, velocity, spin, fixed, tag)?;
+        self.0.add_body(&spec).map_err(error)
     }
 
     /// Removes a body; the bodies after it move down one index.

@@ -438,6 +438,16 @@ def test_a_fixed_plate_given_a_velocity_from_python_carries_a_grain_as_a_belt_do
     assert abs(sim.velocities[grain, 0] - 0.2 * 9.81 * 0.2) < 1e-5, "now braked at mu g"
     with pytest.raises(moreau.MoreauError, match="is fixed: it takes no force or impulse"):
         sim.apply_force(plate, (1.0, 0.0))
+    # A fixed bar added to a running simulation whose bodies turn: it turns at its spin, a paddle.
+    turning = moreau.Simulation(moreau.World([("rubber", 1000.0)], gravity=(0.0, -9.81), rotation=True), h=1e-3)
+    bar = turning.add_polygon((0.0, 2.0), [(-0.5, -0.05), (0.5, -0.05), (0.5, 0.05), (-0.5, 0.05)], "rubber",
+                              fixed=True, spin=2.0)
+    turning.step()
+    assert turning.spins[bar] == 2.0 and abs(turning.angles[bar] - 2e-3) < 1e-15
+    with pytest.raises(moreau.MoreauError, match="polygon vertex 1"):
+        turning.add_polygon((0.0, 3.0), [(0.0, 0.0), (float("inf"), 0.0), (0.0, 1.0)], "rubber")
+    with pytest.raises(moreau.MoreauError, match="spin 1 needs the effect rotation"):
+        sim.add_disk((0.0, 3.0), 0.1, "rubber", spin=1.0)
 
 
 def test_a_shuffled_packing_read_from_python_is_numbered_in_rows_and_each_row_finds_its_body(tmp_path):

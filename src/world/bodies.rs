@@ -233,6 +233,9 @@ impl Bodies {
         if !finite(spec.force) {
             return Err(format!("force [{}, {}] must be finite", spec.force.x, spec.force.y));
         }
+        if spec.lock_rotation && spec.spin != 0.0 {
+            return Err(format!("spin {}: a body that keeps its angle (lock_rotation) does not turn", spec.spin));
+        }
         if spec.fixed && (spec.force != DVec2::ZERO || spec.mass.is_some()) {
             return Err("a fixed body takes no force and no mass (it never moves)".into());
         }
@@ -298,7 +301,7 @@ impl Bodies {
         if self.rotation {
             self.angle.push(spec.angle);
             let turns = !(spec.fixed || spec.lock_rotation);
-            self.spin.push(if spec.lock_rotation { 0.0 } else { spec.spin });
+            self.spin.push(spec.spin);
             self.inertia.push(inertia);
             self.inv_inertia.push(if turns { 1.0 / inertia } else { 0.0 });
         } else if let BodyShape::Polygon(p) = shape {
