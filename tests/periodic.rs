@@ -160,3 +160,24 @@ fn a_run_writes_the_height_profile_of_its_grains() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `scenes/inclined_flow.toml`: a bed of fixed grains tagged 1 (`[[generate]] fixed`, `tag`)
+/// under a flowing layer tagged 0, all in the cell; a few steps start it down the slope.
+#[test]
+fn the_inclined_flow_runs_down_a_bed_of_fixed_grains_tagged_apart() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/inclined_flow.toml");
+    let s = scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let b = &s.world.bodies;
+    let bed: Vec<usize> = (0..b.len()).filter(|&k| b.inv_mass[k] == 0.0).collect();
+    assert_eq!(bed.len(), 39);
+    assert!(bed.iter().all(|&k| b.tag[k] == 1 && b.position[k].y < 0.006));
+    assert!((0..b.len()).filter(|k| !bed.contains(k)).all(|k| b.tag[k] == 0 && b.position[k].y > 0.006));
+    let mut sim = Simulation::new(s.world, s.settings).unwrap();
+    for _ in 0..100 {
+        assert!(sim.step().unwrap().error.is_finite());
+    }
+    let bed_still = bed.iter().all(|&k| sim.velocity(k) == glam::DVec2::ZERO);
+    let moving: Vec<usize> = (0..sim.world.bodies.len()).filter(|k| !bed.contains(k)).collect();
+    let mean_vx = moving.iter().map(|&k| sim.velocity(k).x).sum::<f64>() / moving.len() as f64;
+    assert!(bed_still && mean_vx > 0.0, "mean vx {mean_vx}");
+}

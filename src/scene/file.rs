@@ -272,6 +272,8 @@ struct GenerateSpec {
     velocity: Option<P>,
     /// The grains are fixed, moving at `velocity` (a rough floor, a belt, a shear cell's plate).
     fixed: Option<bool>,
+    /// The first layer's tag (default 0); the next layers count up from it.
+    tag: Option<u32>,
     seed: Option<u64>,
 }
 
@@ -653,7 +655,7 @@ impl Builder<'_> {
                 };
                 body.velocity = velocity;
                 body.fixed = spec.fixed.unwrap_or(false);
-                body.tag = layer as u32;
+                body.tag = spec.tag.unwrap_or(0).saturating_add(layer as u32);
                 let density = world.materials.density[material];
                 world.bodies.add(&body, density).or_else(|m| self.cx.err(g.span(), format!("generate[{k}]"), m))?;
                 self.smallest_radius = self.smallest_radius.min(*r);
