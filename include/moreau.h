@@ -371,7 +371,7 @@ enum MoreauStatus moreau_world_add_drum(struct MoreauWorld *world,
                                         size_t *first);
 
 // Adds the disks of a grains CSV file (a scene's `[[grains]]` columns: x, y, r and optionally
-// vx, vy, spin, tag, material), each of `material` unless its row names one, numbered as `order`
+// vx, vy, spin, tag, material, fixed), each of `material` unless its row names one, numbered as `order`
 // says (`auto`, `space`, `file`; NULL: `auto`). `count` gets the number of rows; each row's body
 // is copied out with `moreau_world_copy_grain_bodies`. Nothing is added when a row is refused
 // (the message names the file, the line and the column).

@@ -281,7 +281,7 @@ impl World {
     }
 
     /// Adds the disks of a grains CSV file (the columns of `[[grains]]`: x, y, r and optionally vx,
-    /// vy, spin, tag, material), each of `material` unless its row names one; `order` as a scene's
+    /// vy, spin, tag, material, fixed), each of `material` unless its row names one; `order` as a scene's
     /// `[[grains]] order` (auto, space, file). Returns each row's body index, in the file's order.
     #[pyo3(signature = (path, material, order = "auto"))]
     fn add_grains(&mut self, path: PathBuf, material: &str, order: &str) -> PyResult<Vec<usize>> {

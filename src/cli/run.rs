@@ -79,7 +79,7 @@ pub struct RunArgs {
     /// Exit non-zero (after writing the outputs) when any step misses its tolerance.
     #[arg(long)]
     strict: bool,
-    /// Write the last step's grains as a grains CSV file (`x,y,r,vx,vy,spin,tag,material`), which a
+    /// Write the last step's grains as a grains CSV file (`x,y,r,vx,vy,spin,tag,material,fixed`), which a
     /// scene's `[[grains]] file` starts from: a deposit settled once, studied many times.
     #[arg(long)]
     save_grains: Option<PathBuf>,

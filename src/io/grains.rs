@@ -1,4 +1,4 @@
-//! A world's grains written as a grains CSV file (`x,y,r,vx,vy,spin,tag,material`, the format
+//! A world's grains written as a grains CSV file (`x,y,r,vx,vy,spin,tag,material,fixed`, the format
 //! `[[grains]]` reads, `scene/grains_csv.rs`): a packing prepared by one run (a deposit let to
 //! settle) becomes the start of others, as LMGC90 hands a deposited sample to its next study.
 
@@ -8,8 +8,8 @@ use std::path::Path;
 use crate::scene::grains_csv::COLUMNS;
 use crate::world::{BodyShape, World};
 
-/// Why `world` cannot be written as a grains file: it holds moving disks, so a polygon or a
-/// fixed body would not come back as it was.
+/// Why `world` cannot be written as a grains file: it holds disks, so a polygon would not come
+/// back as it was.
 pub fn unsavable(world: &World) -> Option<String> {
     let b = &world.bodies;
     if b.is_empty() {
@@ -17,7 +17,6 @@ pub fn unsavable(world: &World) -> Option<String> {
     }
     (0..b.len()).find_map(|k| match b.shape[k] {
         BodyShape::Polygon(_) => Some(format!("body {k} is a polygon; a grains file holds disks")),
-        _ if b.inv_mass[k] == 0.0 => Some(format!("body {k} is fixed; a grains file holds moving disks")),
         _ => None,
     })
 }
@@ -33,8 +32,8 @@ pub fn grains_text(world: &World) -> Result<String, String> {
     for k in 0..b.len() {
         let (p, v) = (b.position[k], b.velocity[k]);
         let material = &world.materials.names[b.material[k] as usize];
-        let (r, spin, tag) = (b.radius_of(k), b.spin_of(k), b.tag[k]);
-        let _ = writeln!(text, "{},{},{},{},{},{spin},{tag},{material}", p.x, p.y, r, v.x, v.y);
+        let (r, spin, tag, fixed) = (b.radius_of(k), b.spin_of(k), b.tag[k], u8::from(b.inv_mass[k] == 0.0));
+        let _ = writeln!(text, "{},{},{},{},{},{spin},{tag},{material},{fixed}", p.x, p.y, r, v.x, v.y);
     }
     Ok(text)
 }
@@ -65,6 +64,9 @@ mod tests {
             spec.material = (k % 2) as usize;
             world.bodies.add(&spec, [2500.0, 900.0][k as usize % 2]).unwrap();
         }
+        // A fixed grain moving along x: a belt's or a shear plate's.
+        let belt = BodySpec { fixed: true, velocity: DVec2::X, ..BodySpec::disk(DVec2::ZERO, 0.01, m) };
+        world.bodies.add(&belt, 2500.0).unwrap();
         let names = &world.materials.names;
         let rows = parse_grains(&grains_text(&world).unwrap(), 10, names).unwrap();
         let b = &world.bodies;
@@ -72,12 +74,13 @@ mod tests {
             assert_eq!((row.center, row.radius), (b.position[k], b.radius_of(k)));
             assert_eq!((row.velocity, row.spin, row.tag), (b.velocity[k], b.spin_of(k), b.tag[k]));
             assert_eq!(row.material, Some(b.material[k] as usize));
+            assert_eq!(row.fixed, b.inv_mass[k] == 0.0, "body {k}");
         }
-        assert_eq!(rows.len(), 5);
+        assert_eq!(rows.len(), 6);
+        assert!(rows[5].fixed && rows[5].velocity == DVec2::X, "a fixed grain keeps its motion");
 
-        let mut fixed = BodySpec::disk(DVec2::ZERO, 0.01, m);
-        fixed.fixed = true;
-        world.bodies.add(&fixed, 2500.0).unwrap();
-        assert_eq!(grains_text(&world).unwrap_err(), "body 5 is fixed; a grains file holds moving disks");
+        let square = vec![DVec2::ZERO, DVec2::X, DVec2::ONE, DVec2::Y];
+        world.bodies.add(&BodySpec::polygon(DVec2::ZERO, square, m), 2500.0).unwrap();
+        assert_eq!(grains_text(&world).unwrap_err(), "body 6 is a polygon; a grains file holds disks");
     }
 }

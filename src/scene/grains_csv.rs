@@ -1,5 +1,5 @@
 //! Grains read from a CSV file, as packings made by other codes are handed over: a header row
-//! naming the columns (`x, y, r` required; `vx, vy, spin, tag, material` optional, the material by
+//! naming the columns (`x, y, r` required; `vx, vy, spin, tag, material, fixed` optional, the material by
 //! its scene name; any order), one grain a row, `#` lines ignored. Errors name the line and the column.
 
 use std::path::Path;
@@ -23,20 +23,23 @@ pub struct GrainRow {
     pub tag: u32,
     /// Index of the material the row names among the scene's (None when the column is absent).
     pub material: Option<usize>,
+    /// A fixed grain, moving only at its velocity and spin (`fixed` 1; 0 or absent: free).
+    pub fixed: bool,
 }
 
 impl GrainRow {
     /// The row's disk as a body: of its own material if it names one, else of `material`.
     pub fn body(&self, material: usize) -> BodySpec {
         let mut spec = BodySpec::disk(self.center, self.radius, self.material.unwrap_or(material));
-        (spec.velocity, spec.spin, spec.tag) = (self.velocity, self.spin, self.tag);
+        (spec.velocity, spec.spin, spec.tag, spec.fixed) = (self.velocity, self.spin, self.tag, self.fixed);
         spec
     }
 }
 
 /// The columns a grains file may have, in the order `io::grains` writes them.
-pub const COLUMNS: [&str; 8] = ["x", "y", "r", "vx", "vy", "spin", "tag", "material"];
+pub const COLUMNS: [&str; 9] = ["x", "y", "r", "vx", "vy", "spin", "tag", "material", "fixed"];
 const MATERIAL: usize = 7;
+const FIXED: usize = 8;
 
 /// Reads at most `max_rows` grains from `path`; `materials` are the scene's material names.
 pub fn read_grains(path: &Path, max_rows: usize, materials: &[String]) -> Result<Vec<GrainRow>, String> {
@@ -55,7 +58,7 @@ pub fn parse_grains(text: &str, max_rows: usize, materials: &[String]) -> Result
     let mut records = reader.records();
     let header = match records.next() {
         Some(h) => h.map_err(|e| format!("header: {e}"))?,
-        None => return Err("no header row (columns x, y, r and optionally vx, vy, spin, tag, material)".into()),
+        None => return Err("no header row (columns x, y, r and optionally vx, vy, spin, tag, material, fixed)".into()),
     };
     let line_of = |r: &csv::StringRecord| r.position().map(|p| p.line()).unwrap_or(0);
     // Where each known column is.
@@ -122,6 +125,10 @@ pub fn parse_grains(text: &str, max_rows: usize, materials: &[String]) -> Result
         if tag < 0.0 || tag.fract() != 0.0 || tag > u32::MAX as f64 {
             return Err(format!("line {line}, column {} (tag): {tag} is not a whole number >= 0", at[6].unwrap() + 1));
         }
+        let fixed = value(FIXED)?;
+        if fixed != 0.0 && fixed != 1.0 {
+            return Err(format!("line {line}, column {} (fixed): {fixed} is neither 0 nor 1", at[FIXED].unwrap() + 1));
+        }
         grains.push(GrainRow {
             center: DVec2::new(value(0)?, value(1)?),
             radius,
@@ -129,6 +136,7 @@ pub fn parse_grains(text: &str, max_rows: usize, materials: &[String]) -> Result
             spin: value(5)?,
             tag: tag as u32,
             material,
+            fixed: fixed == 1.0,
         });
     }
     if grains.is_empty() {
@@ -311,6 +319,8 @@ mod tests {
         assert!(e.contains("line 3: more than 1 grains"), "{e}");
         let e = parse_grains("x,y,r\n0,inf,1\n", 10, &[]).unwrap_err();
         assert!(e.contains("line 2, column 2 (y)"), "{e}");
+        let e = parse_grains("fixed,x,y,r\n1,0,0,1\n2,1,0,1\n", 10, &[]).unwrap_err();
+        assert!(e.contains("line 3, column 1 (fixed): 2 is neither 0 nor 1"), "{e}");
         let sand = ["sand".to_string(), "steel".to_string()];
         let g = parse_grains("x,y,r,material\n0,0,1,steel\n1,0,1,sand\n", 10, &sand).unwrap();
         assert_eq!((g[0].material, g[1].material), (Some(1), Some(0)));

@@ -237,7 +237,9 @@ impl Bodies {
             return Err(format!("spin {}: a body that keeps its angle (lock_rotation) does not turn", spec.spin));
         }
         if spec.fixed && (spec.force != DVec2::ZERO || spec.mass.is_some()) {
-            return Err("a fixed body takes no force and no mass (it never moves)".into());
+            return Err(
+                "a fixed body takes no force and no mass (it moves only at the velocity and spin it is given)".into()
+            );
         }
         if let Some(m) = spec.mass.filter(|m| !(m.is_finite() && *m > 0.0)) {
             return Err(format!("mass {m} must be finite and > 0"));
