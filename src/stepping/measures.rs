@@ -58,13 +58,13 @@ pub struct Measures {
 impl Simulation {
     /// The measures of the current state and the last step's contacts (module docs).
     pub fn measures(&self) -> Measures {
-        let (w, b) = (&self.world, &self.world.bodies);
+        let b = &self.world.bodies;
         let grains: Vec<usize> = (0..b.len()).filter(|&k| b.inv_mass[k] > 0.0).collect();
         if grains.is_empty() {
             return Measures::default();
         }
         let area = self.occupied_area(&grains);
-        let grain_area: f64 = grains.iter().map(|&k| b.mass[k] / w.materials.density[b.material[k] as usize]).sum();
+        let grain_area: f64 = grains.iter().map(|&k| self.grain_area(k)).sum();
         let mut active = vec![0usize; b.len()];
         let mut sum = [0.0; 3]; // ℓx fx, ℓy fy, (ℓx fy + ℓy fx) / 2
         let h = self.settings.h;
@@ -115,6 +115,12 @@ impl Simulation {
             0 => [0.0; 3],
             n => sum.map(|x| x / n as f64),
         }
+    }
+
+    /// Grain `k`'s area, from its mass and its material's density.
+    fn grain_area(&self, k: usize) -> f64 {
+        let b = &self.world.bodies;
+        b.mass[k] / self.world.materials.density[b.material[k] as usize]
     }
 
     /// The area of the region the grains occupy (module docs).
@@ -168,12 +174,13 @@ impl Simulation {
             })
             .collect();
         // Sums of m, m v, m ω and the solid area, then the means.
+        let layer: Vec<usize> = grains.iter().map(|&k| layer_of(b.position[k].y)).collect();
         let mut mass = vec![0.0; count];
-        for &k in &grains {
+        for (&k, &n) in grains.iter().zip(&layer) {
             let (y, m) = (b.position[k].y, b.mass[k]);
-            let l = &mut layers[layer_of(y)];
+            let l = &mut layers[n];
             l.grains += 1;
-            mass[layer_of(y)] += m;
+            mass[n] += m;
             l.vx += m * b.velocity[k].x;
             l.vy += m * b.velocity[k].y;
             l.spin += m * b.spin_of(k);
@@ -183,9 +190,7 @@ impl Simulation {
                         l.solid_fraction += disk_area_between(y, radius, l.y_low, l.y_high);
                     }
                 }
-                crate::world::BodyShape::Polygon(_) => {
-                    l.solid_fraction += m / self.world.materials.density[b.material[k] as usize];
-                }
+                crate::world::BodyShape::Polygon(_) => l.solid_fraction += self.grain_area(k),
             }
         }
         for (l, &m) in layers.iter_mut().zip(&mass) {
@@ -194,8 +199,7 @@ impl Simulation {
                 (l.vx, l.vy, l.spin) = (l.vx / m, l.vy / m, l.spin / m);
             }
         }
-        for &k in &grains {
-            let n = layer_of(b.position[k].y);
+        for (&k, &n) in grains.iter().zip(&layer) {
             let mean = DVec2::new(layers[n].vx, layers[n].vy);
             layers[n].velocity_fluctuation += b.mass[k] * (b.velocity[k] - mean).length_squared();
         }
