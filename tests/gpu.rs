@@ -474,6 +474,17 @@ fn a_solver_the_gpu_lacks_is_a_clear_error() {
 }
 
 /// A scene stepped with its solves on the GPU.
+/// Steps `sim` `steps` times, each step converged and some of its iterations on the GPU.
+fn steps_converged_on_the_gpu(sim: &mut moreau::stepping::Simulation, steps: usize) {
+    let mut on_gpu = 0;
+    for _ in 0..steps {
+        let r = sim.step().unwrap();
+        assert!(r.converged, "{r:?}");
+        on_gpu += r.gpu_iterations;
+    }
+    assert!(on_gpu > 0, "no iteration ran on the GPU");
+}
+
 fn gpu_simulation(ctx: GpuContext, toml: &str) -> (moreau::stepping::Simulation, usize) {
     let s = moreau::scene::parse(toml, Path::new("gpu_scene.toml")).unwrap();
     let steps = s.steps;
@@ -588,14 +599,23 @@ disk = {{ center = [{}, {}], radius = 0.1 }}
                 vertices = [[-5.0, -0.05], [5.0, -0.05], [5.0, 0.05], [-5.0, 0.05]] }\nfixed = true\nvelocity = [1.0, 0.0]\n\
                 [[body]]\ndisk = { center = [0.0, 0.1], radius = 0.1 }\n";
     let (mut sim, steps) = gpu_simulation(ctx, belt);
-    let mut on_gpu = 0;
-    for _ in 0..steps {
-        let r = sim.step().unwrap();
-        assert!(r.converged, "{r:?}");
-        on_gpu += r.gpu_iterations;
-    }
-    assert!(on_gpu > 0, "no iteration ran on the GPU");
+    steps_converged_on_the_gpu(&mut sim, steps);
     assert!((sim.velocity(1).x - 1.0 / 3.0).abs() < 1e-4 && sim.velocity(0) == moreau::DVec2::X, "{}", sim.velocity(1));
+}
+
+/// A disk rolls down a 20° slope (μ 0.5) while a dimer, two overlapping disks as one clump,
+/// rests on it: on the software adapter as on the CPU. Tolerance: the disk's speed within
+/// 0.5 % of ⅔ g sin θ t, the dimer still to 1e-6 m/s (the solves finish in f64 on the CPU).
+#[test]
+fn a_clump_rests_on_a_slope_on_the_gpu_as_on_the_cpu() {
+    let Some(ctx) = common::gpu_context() else { return };
+    let (mut sim, steps) = gpu_simulation(ctx, &common::disk_and_dimer_on_a_slope(20.0));
+    steps_converged_on_the_gpu(&mut sim, steps);
+    let t = 20f64.to_radians();
+    let rolling = 2.0 / 3.0 * 9.81 * t.sin() * sim.time();
+    let v = sim.velocity(0).dot(moreau::DVec2::new(t.cos(), -t.sin()));
+    assert!((v - rolling).abs() < 5e-3 * rolling, "disk {v} m/s, rolling {rolling} m/s");
+    assert!(sim.velocity(1).length() < 1e-6, "the dimer moves at {}", sim.velocity(1));
 }
 
 /// Buffers are taken from the context's pool and written in place: a solve after others of

@@ -1,4 +1,5 @@
-//! Exact narrow phase. Disk–disk and disk–segment are closed-form in f64; disk–polygon goes
+//! Exact narrow phase. Disk–disk and disk–segment are closed-form in f64 (a clump's disks each
+//! as a disk, a contact per pair of disks that touch); disk–polygon goes
 //! through parry2d (f32, posed relative to the disk so precision follows grain size, not the
 //! distance from the origin); polygon–polygon and polygon–segment by SAT and clipping in f64.
 
@@ -84,20 +85,6 @@ pub fn body_body(
             }
         }
         _ if bodies.inv_mass[i] == 0.0 && bodies.inv_mass[j] == 0.0 => {}
-        (BodyShape::Disk { radius }, BodyShape::Polygon(p)) => {
-            if let Some((point, normal, gap)) =
-                disk_polygon(xi, radius, &bodies.polygons[p as usize].parry, xj, config.angle_of(j), alert)
-            {
-                push(out, 0, point, normal, gap);
-            }
-        }
-        (BodyShape::Polygon(p), BodyShape::Disk { radius }) => {
-            if let Some((point, normal, gap)) =
-                disk_polygon(xj, radius, &bodies.polygons[p as usize].parry, xi, config.angle_of(i), alert)
-            {
-                push(out, 0, point, -normal, gap);
-            }
-        }
         (BodyShape::Polygon(_), BodyShape::Polygon(_)) => {
             let mut pts = Vec::new();
             let b: Vec<DVec2> = world_vertices(bodies, config, j).into_iter().map(|v| v + image).collect();
@@ -107,7 +94,52 @@ pub fn body_body(
                 push(out, c.feature, c.point, c.normal, c.gap);
             }
         }
+        (BodyShape::Polygon(p), _) => {
+            let polygon = &bodies.polygons[p as usize].parry;
+            for (b, (x, radius)) in round_pieces(bodies, config, j, image).into_iter().enumerate() {
+                if let Some((point, normal, gap)) = disk_polygon(x, radius, polygon, xi, config.angle_of(i), alert) {
+                    push(out, piece_pair(0, b), point, -normal, gap);
+                }
+            }
+        }
+        (_, BodyShape::Polygon(p)) => {
+            let polygon = &bodies.polygons[p as usize].parry;
+            for (a, (x, radius)) in round_pieces(bodies, config, i, DVec2::ZERO).into_iter().enumerate() {
+                if let Some((point, normal, gap)) = disk_polygon(x, radius, polygon, xj, config.angle_of(j), alert) {
+                    push(out, piece_pair(a, 0), point, normal, gap);
+                }
+            }
+        }
+        // Disks and clumps: every disk of one against every disk of the other.
+        (_, _) => {
+            let theirs = round_pieces(bodies, config, j, image);
+            for (a, (xa, ra)) in round_pieces(bodies, config, i, DVec2::ZERO).into_iter().enumerate() {
+                for (b, &(xb, rb)) in theirs.iter().enumerate() {
+                    let (gap, normal, point) = disk_disk(xa, ra, xb, rb);
+                    if gap <= alert {
+                        push(out, piece_pair(a, b), point, normal, gap);
+                    }
+                }
+            }
+        }
     }
+}
+
+/// A disk's or a clump's disks in the world frame, body `k` shifted by `image` (empty for a
+/// polygon).
+fn round_pieces(bodies: &Bodies, config: &Configuration, k: usize, image: DVec2) -> Vec<(DVec2, f64)> {
+    let x = config.position[k] + image;
+    match bodies.shape[k] {
+        BodyShape::Disk { radius } => vec![(x, radius)],
+        BodyShape::Clump(c) => bodies.clump_disks(c, x, config.angle_of(k)).collect(),
+        BodyShape::Polygon(_) => Vec::new(),
+    }
+}
+
+/// The feature of a contact between disk `a` of body `i` and disk `b` of its antagonist (0 for
+/// a body that is one disk): a clump pair's contacts stay apart from step to step.
+fn piece_pair(a: usize, b: usize) -> u64 {
+    (a as u64) << 32 | b as u64
 }
 
 fn world_vertices(bodies: &Bodies, config: &Configuration, k: usize) -> Vec<DVec2> {
@@ -130,17 +162,26 @@ pub fn body_wall(
     let push = |out: &mut Vec<DetectedContact>, feature: u64, point: DVec2, normal: DVec2, gap: f64| {
         out.push(DetectedContact { i: k, other: Antagonist::Wall(w), feature, point, normal, gap, image: DVec2::ZERO })
     };
-    match (bodies.shape[k], &wall.shape) {
-        (BodyShape::Disk { radius }, WallShape::Segment { .. }) => {
+    // One disk (a clump's disk `a`) against the wall.
+    let round = |out: &mut Vec<DetectedContact>, a: usize, x: DVec2, radius: f64| match &wall.shape {
+        WallShape::Segment { .. } => {
             let p = wall.world_points();
             let (gap, normal, point) = disk_segment(x, radius, p[0], p[1]);
             if gap <= alert {
-                push(out, 0, point, normal, gap);
+                push(out, a as u64, point, normal, gap);
             }
         }
-        (BodyShape::Disk { radius }, WallShape::Polygon(poly)) => {
+        WallShape::Polygon(poly) => {
             if let Some((point, normal, gap)) = disk_polygon(x, radius, &poly.parry, wall.center, wall.angle, alert) {
-                push(out, 0, point, normal, gap);
+                push(out, a as u64, point, normal, gap);
+            }
+        }
+    };
+    match (bodies.shape[k], &wall.shape) {
+        (BodyShape::Disk { radius }, _) => round(out, 0, x, radius),
+        (BodyShape::Clump(c), _) => {
+            for (a, (x, radius)) in bodies.clump_disks(c, x, config.angle_of(k)).enumerate() {
+                round(out, a, x, radius);
             }
         }
         (BodyShape::Polygon(_), _) => {

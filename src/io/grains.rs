@@ -8,8 +8,8 @@ use std::path::Path;
 use crate::scene::grains_csv::COLUMNS;
 use crate::world::{BodyShape, World};
 
-/// Why `world` cannot be written as a grains file: it holds disks, so a polygon would not come
-/// back as it was.
+/// Why `world` cannot be written as a grains file: it holds disks, so a polygon or a clump
+/// would not come back as it was.
 pub fn unsavable(world: &World) -> Option<String> {
     let b = &world.bodies;
     if b.is_empty() {
@@ -17,6 +17,7 @@ pub fn unsavable(world: &World) -> Option<String> {
     }
     (0..b.len()).find_map(|k| match b.shape[k] {
         BodyShape::Polygon(_) => Some(format!("body {k} is a polygon; a grains file holds disks")),
+        BodyShape::Clump(_) => Some(format!("body {k} is a clump; a grains file holds disks")),
         _ => None,
     })
 }

@@ -25,9 +25,9 @@ use crate::world::BodyShape;
 pub struct Grain {
     /// Centre (m).
     pub position: DVec2,
-    /// The disk's radius, or a polygon's bounding radius.
+    /// The disk's radius, or a polygon's or a clump's bounding radius.
     pub radius: f64,
-    /// A polygon's vertices in the world frame; `None` for a disk.
+    /// A polygon's vertices or a clump's outline in the world frame; `None` for a disk.
     pub outline: Option<Vec<DVec2>>,
     /// Velocity (m/s).
     pub velocity: DVec2,
@@ -124,7 +124,7 @@ impl Frame {
             .map(|k| Grain {
                 position: b.position[k],
                 radius: b.radius_of(k),
-                outline: matches!(b.shape[k], BodyShape::Polygon(_)).then(|| b.world_vertices(k)),
+                outline: (!matches!(b.shape[k], BodyShape::Disk { .. })).then(|| b.world_vertices(k)),
                 velocity: b.velocity[k],
                 tag: b.tag[k],
             })

@@ -43,7 +43,8 @@ pub fn write_step(sim: &Simulation, dir: &Path, index: usize) -> Result<[PathBuf
     let b = &world.bodies;
     let n = b.len();
 
-    // Grains: a vertex cell per body; polygon bodies add a polygon cell over their vertices.
+    // Grains: a vertex cell per body; polygons add a polygon cell over their vertices, clumps
+    // one over their outline.
     let mut points = Vec::with_capacity(3 * n);
     let (mut conn, mut offs, mut types) = (Vec::new(), Vec::new(), Vec::new());
     for k in 0..n {
@@ -54,7 +55,7 @@ pub fn write_step(sim: &Simulation, dir: &Path, index: usize) -> Result<[PathBuf
     }
     let mut cell_body: Vec<i64> = (0..n as i64).collect();
     for k in 0..n {
-        if let BodyShape::Polygon(_) = b.shape[k] {
+        if !matches!(b.shape[k], BodyShape::Disk { .. }) {
             for p in b.world_vertices(k) {
                 conn.push((points.len() / 3) as u64);
                 points.extend([p.x, p.y, 0.0]);

@@ -32,7 +32,8 @@ impl<'de, T: Deserialize<'de>, const N: usize> Deserialize<'de> for Exact<T, N> 
         let values = Vec::<T>::deserialize(d)?;
         let got = values.len();
         let array: [T; N] = values.try_into().map_err(|_| {
-            serde::de::Error::invalid_length(got, &format!("an array of exactly {N} values ([x, y] in 2D)").as_str())
+            let hint = if N == 3 { "[x, y, r], a clump's disk" } else { "[x, y] in 2D" };
+            serde::de::Error::invalid_length(got, &format!("an array of exactly {N} values ({hint})").as_str())
         })?;
         Ok(Self(array))
     }
@@ -214,6 +215,18 @@ struct PolygonSpec {
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
+struct ClumpSpec {
+    center: P,
+    /// `[x, y, r]` of each disk, centres relative to `center`.
+    disks: Vec<Exact<f64, 3>>,
+}
+
+fn clump_disks(disks: &[Exact<f64, 3>]) -> Vec<(DVec2, f64)> {
+    disks.iter().map(|d| (DVec2::new(d[0], d[1]), d[2])).collect()
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct RegularSpec {
     center: P,
     radius: f64,
@@ -227,6 +240,7 @@ struct BodyFileSpec {
     disk: Option<DiskSpec>,
     polygon: Option<PolygonSpec>,
     regular: Option<RegularSpec>,
+    clump: Option<ClumpSpec>,
     material: Option<String>,
     velocity: Option<P>,
     spin: Option<f64>,
@@ -262,6 +276,9 @@ struct GenerateSpec {
     region: BoxSpec,
     /// Polygon grains with this many sides (default: disks).
     sides: Option<usize>,
+    /// Clump grains shaped as these disks (`[x, y, r]` each), scaled so that the clump's
+    /// bounding radius is the grain's radius, turned at random.
+    clump: Option<Vec<Exact<f64, 3>>>,
     material: Option<String>,
     /// Materials given to successive layers (with `layers`).
     materials: Option<Vec<String>>,
@@ -543,12 +560,13 @@ impl Builder<'_> {
             let spec = b.get_ref();
             let field = |f: &str| format!("body[{k}].{f}");
             let material = self.material_index(&spec.material, b.span(), field("material"))?;
-            let mut body = match (&spec.disk, &spec.polygon, &spec.regular) {
-                (Some(d), None, None) => BodySpec::disk(v(d.center), d.radius, material),
-                (None, Some(p), None) => {
+            let mut body = match (&spec.disk, &spec.polygon, &spec.regular, &spec.clump) {
+                (Some(d), None, None, None) => BodySpec::disk(v(d.center), d.radius, material),
+                (None, Some(p), None, None) => {
                     BodySpec::polygon(v(p.center), p.vertices.iter().map(|x| v(*x)).collect(), material)
                 }
-                (None, None, Some(r)) => {
+                (None, None, None, Some(c)) => BodySpec::clump(v(c.center), clump_disks(&c.disks), material),
+                (None, None, Some(r), None) => {
                     if r.sides < 3 || r.sides > MAX_POLYGON_SIDES {
                         return self.cx.err(
                             b.span(),
@@ -558,7 +576,13 @@ impl Builder<'_> {
                     }
                     BodySpec::regular_polygon(v(r.center), r.radius, r.sides, 0.0, material)
                 }
-                _ => return self.cx.err(b.span(), format!("body[{k}]"), "give exactly one of disk, polygon, regular"),
+                _ => {
+                    return self.cx.err(
+                        b.span(),
+                        format!("body[{k}]"),
+                        "give exactly one of disk, polygon, regular, clump",
+                    )
+                }
             };
             body.velocity = spec.velocity.map(v).unwrap_or(DVec2::ZERO);
             body.spin = spec.spin.unwrap_or(0.0);
@@ -627,6 +651,21 @@ impl Builder<'_> {
             };
             let layers = spec.layers.unwrap_or(1).max(1);
             let seed = spec.seed.unwrap_or(k as u64);
+            let template = match (&spec.clump, spec.sides, spec.kind) {
+                (None, _, _) => None,
+                (Some(_), Some(_), _) => return self.cx.err(g.span(), field("clump"), "give sides or clump, not both"),
+                (Some(_), _, GenerateKind::Pyramid) => {
+                    return self.cx.err(
+                        g.span(),
+                        field("clump"),
+                        "a pyramid is made of boxes; clumps need grid or deposition",
+                    )
+                }
+                (Some(disks), None, _) => Some(
+                    crate::world::unit_clump(&clump_disks(disks))
+                        .or_else(|m| self.cx.err(g.span(), field("clump"), m))?,
+                ),
+            };
             let (centers, radii) = self.layout(k, g, count, seed)?;
             let velocity = spec.velocity.map(v).unwrap_or(DVec2::ZERO);
             let mut rng_angle = rand::rngs::SmallRng::seed_from_u64(seed ^ 0x9e37_79b9);
@@ -638,6 +677,13 @@ impl Builder<'_> {
                         let h = *r;
                         let square = vec![DVec2::new(-h, -h), DVec2::new(h, -h), DVec2::new(h, h), DVec2::new(-h, h)];
                         BodySpec::polygon(*c, square, material)
+                    }
+                    None if template.is_some() => {
+                        use rand::Rng;
+                        let disks = template.iter().flatten().map(|(o, d)| (*o * *r, d * *r)).collect();
+                        let mut clump = BodySpec::clump(*c, disks, material);
+                        clump.angle = rng_angle.gen_range(0.0..std::f64::consts::TAU);
+                        clump
                     }
                     None => BodySpec::disk(*c, *r, material),
                     Some(s) if (3..=MAX_POLYGON_SIDES).contains(&s) => {

@@ -190,7 +190,9 @@ impl Simulation {
                         l.solid_fraction += disk_area_between(y, radius, l.y_low, l.y_high);
                     }
                 }
-                crate::world::BodyShape::Polygon(_) => l.solid_fraction += self.grain_area(k),
+                crate::world::BodyShape::Polygon(_) | crate::world::BodyShape::Clump(_) => {
+                    l.solid_fraction += self.grain_area(k)
+                }
             }
         }
         for (l, &m) in layers.iter_mut().zip(&mass) {

@@ -3,6 +3,8 @@
 use glam::DVec2;
 use parry2d::shape::ConvexPolygon;
 
+use super::clump::{disk_union, ClumpShape};
+
 /// A convex polygon in its body frame (centroid at the origin, counter-clockwise), with the
 /// f32 parry2d copy used by the narrow phase.
 #[derive(Clone, Debug)]
@@ -23,6 +25,8 @@ pub enum BodyShape {
     },
     /// Index into [`Bodies::polygons`].
     Polygon(u32),
+    /// Index into [`Bodies::clumps`].
+    Clump(u32),
 }
 
 /// What a host code or a scene gives to create a body.
@@ -69,6 +73,12 @@ pub enum SpecShape {
         /// Vertices relative to the given centre (recentred on the centroid when added).
         vertices: Vec<DVec2>,
     },
+    /// Overlapping disks moving as one rigid grain (a non-convex grain).
+    Clump {
+        /// Each disk's centre relative to the given centre, and its radius (the body is
+        /// recentred on the union's centroid when added).
+        disks: Vec<(DVec2, f64)>,
+    },
 }
 
 impl BodySpec {
@@ -94,6 +104,11 @@ impl BodySpec {
         Self { shape: SpecShape::Polygon { vertices }, ..Self::disk(center, 0.0, material) }
     }
 
+    /// A clump of overlapping disks (centres relative to `center`, radii), at rest.
+    pub fn clump(center: DVec2, disks: Vec<(DVec2, f64)>, material: usize) -> Self {
+        Self { shape: SpecShape::Clump { disks }, ..Self::disk(center, 0.0, material) }
+    }
+
     /// A regular polygon with `sides` vertices on a circle of `radius`.
     pub fn regular_polygon(center: DVec2, radius: f64, sides: usize, angle: f64, material: usize) -> Self {
         let vertices = (0..sides)
@@ -114,6 +129,8 @@ pub struct Bodies {
     pub shape: Vec<BodyShape>,
     /// The polygon shapes, referred to from [`Self::shape`].
     pub polygons: Vec<PolygonShape>,
+    /// The clump shapes, referred to from [`Self::shape`].
+    pub clumps: Vec<ClumpShape>,
     /// Centres of mass (m).
     pub position: Vec<DVec2>,
     /// Velocities (m/s).
@@ -162,6 +179,7 @@ impl Bodies {
             rotation,
             shape: Vec::new(),
             polygons: Vec::new(),
+            clumps: Vec::new(),
             position: Vec::new(),
             velocity: Vec::new(),
             angle: Vec::new(),
@@ -177,8 +195,8 @@ impl Bodies {
         }
     }
 
-    /// Removes body `k`; the bodies after it move down one index. (Its polygon, if any, stays
-    /// in `polygons`, unused.)
+    /// Removes body `k`; the bodies after it move down one index. (Its polygon or clump, if
+    /// any, stays in `polygons` or `clumps`, unused.)
     pub fn remove(&mut self, k: usize) {
         self.shape.remove(k);
         self.position.remove(k);
@@ -284,6 +302,15 @@ impl Bodies {
                 let c = spec.center + DVec2::from_angle(spec.angle).rotate(centroid);
                 (BodyShape::Polygon(self.polygons.len() as u32 - 1), area, polar, size, c)
             }
+            SpecShape::Clump { disks } => {
+                let union = disk_union(disks)?;
+                let local: Vec<(DVec2, f64)> = disks.iter().map(|(c, r)| (*c - union.centroid, *r)).collect();
+                let size = local.iter().map(|(c, r)| c.length() + r).fold(0.0, f64::max);
+                let outline = union.outline.iter().map(|p| *p - union.centroid).collect();
+                self.clumps.push(ClumpShape { disks: local, outline });
+                let c = spec.center + DVec2::from_angle(spec.angle).rotate(union.centroid);
+                (BodyShape::Clump(self.clumps.len() as u32 - 1), union.area, union.polar, size, c)
+            }
         };
         // A given mass sets the density the inertia is computed with.
         let density = spec.mass.map_or(density, |m| m / area);
@@ -314,6 +341,11 @@ impl Bodies {
             let pts: Vec<_> =
                 poly.vertices.iter().map(|v| parry2d::math::Vector::new(v.x as f32, v.y as f32)).collect();
             poly.parry = ConvexPolygon::from_convex_polyline(pts).ok_or("degenerate polygon after rotation")?;
+        } else if let BodyShape::Clump(c) = shape {
+            let rot = DVec2::from_angle(spec.angle);
+            let clump = &mut self.clumps[c as usize];
+            clump.disks.iter_mut().for_each(|(c, _)| *c = rot.rotate(*c));
+            clump.outline.iter_mut().for_each(|p| *p = rot.rotate(*p));
         }
         self.bounding_radius.push(bounding);
         self.material.push(spec.material as u16);
@@ -345,23 +377,30 @@ impl Bodies {
         }
     }
 
-    /// Disk radius, or the bounding radius of a polygon.
+    /// Disk radius, or the bounding radius of a polygon or a clump.
     pub fn radius_of(&self, k: usize) -> f64 {
         match self.shape[k] {
             BodyShape::Disk { radius } => radius,
-            BodyShape::Polygon(_) => self.bounding_radius[k],
+            BodyShape::Polygon(_) | BodyShape::Clump(_) => self.bounding_radius[k],
         }
     }
 
-    /// World coordinates of a polygon body's vertices (empty for a disk).
+    /// World coordinates of a polygon body's vertices, or of a clump's outline (empty for a
+    /// disk).
     pub fn world_vertices(&self, k: usize) -> Vec<DVec2> {
-        match self.shape[k] {
-            BodyShape::Disk { .. } => Vec::new(),
-            BodyShape::Polygon(p) => {
-                let rot = DVec2::from_angle(self.angle_of(k));
-                self.polygons[p as usize].vertices.iter().map(|v| self.position[k] + rot.rotate(*v)).collect()
-            }
-        }
+        let local = match self.shape[k] {
+            BodyShape::Disk { .. } => return Vec::new(),
+            BodyShape::Polygon(p) => &self.polygons[p as usize].vertices,
+            BodyShape::Clump(c) => &self.clumps[c as usize].outline,
+        };
+        let rot = DVec2::from_angle(self.angle_of(k));
+        local.iter().map(|v| self.position[k] + rot.rotate(*v)).collect()
+    }
+
+    /// A clump body's disks in the world frame (centre, radius), at `position` and `angle`.
+    pub fn clump_disks(&self, c: u32, position: DVec2, angle: f64) -> impl Iterator<Item = (DVec2, f64)> + '_ {
+        let rot = DVec2::from_angle(angle);
+        self.clumps[c as usize].disks.iter().map(move |(o, r)| (position + rot.rotate(*o), *r))
     }
 
     /// Kinetic energy of translation and rotation (J).

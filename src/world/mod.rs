@@ -1,9 +1,10 @@
-//! The simulated system: bodies (disks, convex polygons), walls, materials and the effects a
+//! The simulated system: bodies (disks, convex polygons, clumps of disks), walls, materials and the effects a
 //! scene switches on. Stored as flat arrays (structure of arrays): per-body data that an effect
 //! needs (angles and spins for rotation, pair tables for friction…) exists only when it is on.
 
 mod bodies;
 mod build;
+mod clump;
 mod effects;
 mod materials;
 mod periodic;
@@ -11,6 +12,7 @@ mod walls;
 
 pub use bodies::{Bodies, BodyShape, BodySpec, PolygonShape, SpecShape};
 pub use build::WorldError;
+pub use clump::{unit_clump, ClumpShape, MAX_CLUMP_DISKS};
 pub use effects::{Effect, Effects};
 pub use materials::{Interaction, Materials};
 pub use periodic::Periodic;
@@ -106,6 +108,11 @@ impl World {
                 BodyShape::Polygon(i) => {
                     words.push(1);
                     points(&mut words, &b.polygons[i as usize].vertices);
+                }
+                BodyShape::Clump(i) => {
+                    let disks = &b.clumps[i as usize].disks;
+                    words.extend([2, disks.len() as u64]);
+                    words.extend(disks.iter().flat_map(|(c, r)| [c.x.to_bits(), c.y.to_bits(), r.to_bits()]));
                 }
             }
             words.push(b.material[k] as u64 | u64::from(b.inv_mass[k] == 0.0) << 32);

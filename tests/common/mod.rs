@@ -116,3 +116,23 @@ pub fn worst_contact_residual(p: &moreau::problem::ContactProblem, r: &[f64], re
         })
         .fold(0.0, f64::max)
 }
+
+/// An incline of `deg` degrees (down to the right, μ 0.5) with a disk of radius 0.1 and, 3 m
+/// further down, a dimer lying along the slope: two such disks, centres 0.16 apart.
+pub fn disk_and_dimer_on_a_slope(deg: f64) -> String {
+    use glam::DVec2;
+    let t = deg.to_radians();
+    let (dir, n) = (DVec2::new(t.cos(), -t.sin()), DVec2::new(t.sin(), t.cos()));
+    let disk = 2.0 * dir + 0.1 * n;
+    let dimer = 5.0 * dir + 0.1 * n;
+    let (a, b) = (-0.08 * dir, 0.08 * dir);
+    let end = 20.0 * dir;
+    format!(
+        "effects = [\"gravity\", \"friction\", \"rotation\"]\n[time]\nstep = 1e-3\nsteps = 400\n[solver]\ntol = 1e-8\n\
+         [contact]\nfriction = 0.5\n[[material]]\nname = \"m\"\ndensity = 1000.0\n\
+         [[wall]]\nsegment = [[0.0, 0.0], [{}, {}]]\n\
+         [[body]]\ndisk = {{ center = [{}, {}], radius = 0.1 }}\n\
+         [[body]]\nclump = {{ center = [{}, {}], disks = [[{}, {}, 0.1], [{}, {}, 0.1]] }}\n",
+        end.x, end.y, disk.x, disk.y, dimer.x, dimer.y, a.x, a.y, b.x, b.y
+    )
+}
