@@ -334,6 +334,19 @@ enum MoreauStatus moreau_world_add_polygon(struct MoreauWorld *world,
                                            const struct MoreauMotion *motion,
                                            size_t *body);
 
+// Adds a clump: `count` disks `(x0, y0, r0, x1, …)`, centres relative to (`x`, `y`), that
+// overlap into one rigid grain turning about their union's centroid; turned by `angle` (rad),
+// moving as `motion` says (NULL: at rest); `body` (may be NULL) gets its index.
+enum MoreauStatus moreau_world_add_clump(struct MoreauWorld *world,
+                                         double x,
+                                         double y,
+                                         const double *disks,
+                                         size_t count,
+                                         double angle,
+                                         const char *material,
+                                         const struct MoreauMotion *motion,
+                                         size_t *body);
+
 // Adds a wall segment from (`ax`, `ay`) to (`bx`, `by`), moving at (`vx`, `vy`) (a velocity needs
 // the setting `moving_walls`); `wall` (may be NULL) gets its index.
 enum MoreauStatus moreau_world_add_wall(struct MoreauWorld *world,

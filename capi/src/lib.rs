@@ -722,6 +722,30 @@ pub extern "C" fn moreau_world_add_polygon(
     })
 }
 
+/// Adds a clump: `count` disks `(x0, y0, r0, x1, …)`, centres relative to (`x`, `y`), that
+/// overlap into one rigid grain turning about their union's centroid; turned by `angle` (rad),
+/// moving as `motion` says (NULL: at rest); `body` (may be NULL) gets its index.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub extern "C" fn moreau_world_add_clump(
+    world: *mut MoreauWorld,
+    x: f64,
+    y: f64,
+    disks: *const f64,
+    count: usize,
+    angle: f64,
+    material: *const c_char,
+    motion: *const MoreauMotion,
+    body: *mut usize,
+) -> MoreauStatus {
+    guard(|| {
+        let xyr = slice(disks, 3 * count, "disks")?;
+        let disks = xyr.chunks_exact(3).map(|d| (moreau::DVec2::new(d[0], d[1]), d[2])).collect();
+        let spec = BodySpec::clump(moreau::DVec2::new(x, y), disks, 0);
+        add_body(world, spec, material, angle, motion, body)
+    })
+}
+
 /// Adds a wall segment from (`ax`, `ay`) to (`bx`, `by`), moving at (`vx`, `vy`) (a velocity needs
 /// the setting `moving_walls`); `wall` (may be NULL) gets its index.
 #[no_mangle]
@@ -1514,6 +1538,9 @@ mod tests {
         let two = [0.0, 0.0, 1.0, 0.0];
         let status = moreau_world_add_polygon(world, 0.0, 1.0, two.as_ptr(), 2, 0.0, grain, std::ptr::null(), none);
         assert!(status == MoreauStatus::InvalidArgument && last_error().contains("at least 3"), "{}", last_error());
+        let apart = [0.0, 0.0, 0.1, 0.5, 0.0, 0.1];
+        let status = moreau_world_add_clump(world, 0.0, 1.0, apart.as_ptr(), 2, 0.0, grain, std::ptr::null(), none);
+        assert!(status == MoreauStatus::InvalidArgument && last_error().contains("clump disk 1"), "{}", last_error());
         let status = moreau_world_add_drum(world, 0.0, 0.0, 0.1, 2, grain, 0.0, none);
         assert!(status == MoreauStatus::InvalidArgument && last_error().contains("3 <= sides"), "{}", last_error());
         let status = moreau_world_add_drum(world, 0.0, 0.0, 0.1, 8, grain, 1.0, none);

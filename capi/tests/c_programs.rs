@@ -295,7 +295,7 @@ fn a_c_program_sets_the_time_step_as_the_library_does() {
 }
 
 /// `examples/c/build_world.c`'s world as a scene file, with its grains file: two materials, a box,
-/// fifteen disks (the last thrown, spinning), a polygon lid, and eight grains written right to left (`auto` keeps the file's
+/// fifteen disks (the last thrown, spinning), a polygon lid, a dimer, and eight grains written right to left (`auto` keeps the file's
 /// order: they lie in one row).
 fn write_build_world_scene(dir: &Path) -> (PathBuf, PathBuf) {
     std::fs::create_dir_all(dir).unwrap();
@@ -321,7 +321,8 @@ fn write_build_world_scene(dir: &Path) -> (PathBuf, PathBuf) {
     }
     scene.push_str(
         "[[body]]\npolygon = { center = [0.0, 0.6], vertices = [[-0.15, -0.02], [0.15, -0.02], [0.15, 0.02], \
-         [-0.15, 0.02]] }\nmaterial = \"steel\"\nangle = 0.1\n[[grains]]\nfile = \"grains.csv\"\nmaterial = \"grain\"\n",
+         [-0.15, 0.02]] }\nmaterial = \"steel\"\nangle = 0.1\n[[body]]\nclump = { center = [0.3, 0.4], \
+         disks = [[-0.03, 0.0, 0.04], [0.03, 0.0, 0.04]] }\nmaterial = \"grain\"\nangle = 0.3\n[[grains]]\nfile = \"grains.csv\"\nmaterial = \"grain\"\n",
     );
     let path = dir.join("build_world.toml");
     std::fs::write(&path, scene).unwrap();
@@ -346,9 +347,9 @@ fn a_world_built_in_c_steps_to_the_bits_of_the_scene_file_describing_it() {
     // The C program's sum, term for term: `sum += x + y + angle`.
     let sum = (0..sim.body_count()).fold(0.0, |s, k| s + (sim.position(k).x + sim.position(k).y + sim.angle(k)));
     assert_eq!(field(&out, "sum").to_bits(), sum.to_bits(), "{out}: the scene's {sum:.17e}");
-    assert_eq!(field(&out, "bodies") as usize, 24, "{out}");
+    assert_eq!(field(&out, "bodies") as usize, 25, "{out}");
     assert_eq!(field(&out, "lid") as usize, lid, "{out}");
-    assert_eq!((field(&out, "rows"), field(&out, "first_row_body")), (8.0, 16.0), "{out}");
+    assert_eq!((field(&out, "rows"), field(&out, "first_row_body")), (8.0, 17.0), "{out}");
     assert_eq!(field(&out, "contacts") as usize, sim.contacts().len(), "{out}");
     // The lid was set spinning: without the call the run is another.
     assert!(sim.angle(lid) != 0.1 && sim.spin(lid) != 0.0, "{out}");

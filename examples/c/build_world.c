@@ -1,6 +1,6 @@
 /* Builds a world in code from C, without a scene file, and steps it: two materials with their own
  * contact law, a box of three walls, three columns of disks, a polygon lid set spinning after the
- * first step, and the disks of a grains file when one is given.
+ * first step, a dimer (a clump of two disks), and the disks of a grains file when one is given.
  *
  *   cc -I include examples/c/build_world.c -L target/release -lmoreau_c -o build_world
  *   ./build_world [STEPS [GRAINS.csv]]
@@ -45,6 +45,9 @@ int main(int argc, char **argv) {
     const double lid[] = {-0.15, -0.02, 0.15, -0.02, 0.15, 0.02, -0.15, 0.02};
     size_t lid_body = 0;
     ok = ok && moreau_world_add_polygon(world, 0.0, 0.6, lid, 4, 0.1, "steel", NULL, &lid_body) == MOREAU_STATUS_OK;
+    /* A dimer: two overlapping disks (x, y, r) as one rigid grain, turned by 0.3 rad. */
+    const double dimer[] = {-0.03, 0.0, 0.04, 0.03, 0.0, 0.04};
+    ok = ok && moreau_world_add_clump(world, 0.3, 0.4, dimer, 2, 0.3, "grain", NULL, NULL) == MOREAU_STATUS_OK;
     size_t rows = 0, first_row_body = 0;
     if (ok && argc > 2) {
         ok = moreau_world_add_grains(world, argv[2], "grain", "auto", &rows) == MOREAU_STATUS_OK;

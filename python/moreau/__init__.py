@@ -448,6 +448,14 @@ class Simulation:
         return self._inner.add_polygon(tuple(center), [tuple(v) for v in vertices], material, angle,
                                        tuple(velocity), spin, fixed, tag)
 
+    def add_clump(self, center: Sequence[float], disks: Sequence[Sequence[float]], material: str,
+                  angle: float = 0.0, velocity: Sequence[float] = (0.0, 0.0), spin: float = 0.0,
+                  fixed: bool = False, tag: int = 0) -> int:
+        """Adds a clump between steps: disks ``(x, y, r)`` (centres relative to ``center``) that
+        overlap into one rigid grain; returns its index."""
+        return self._inner.add_clump(tuple(center), [tuple(d) for d in disks], material, angle,
+                                     tuple(velocity), spin, fixed, tag)
+
     def remove_body(self, body: int) -> None:
         """Removes a body; the bodies after it move down one index, its contacts go."""
         self._inner.remove_body(body)

@@ -78,6 +78,17 @@ class World:
         fixed: bool = False,
         tag: int = 0,
     ) -> int: ...
+    def add_clump(
+        self,
+        center: _Vec,
+        disks: List[Tuple[float, float, float]],
+        material: str,
+        angle: float = 0.0,
+        velocity: _Vec = (0.0, 0.0),
+        spin: float = 0.0,
+        fixed: bool = False,
+        tag: int = 0,
+    ) -> int: ...
     def add_wall(self, a: _Vec, b: _Vec, material: str, velocity: _Vec = (0.0, 0.0)) -> int: ...
     def add_polygon_wall(
         self, vertices: Sequence[_Vec], material: str, velocity: _Vec = (0.0, 0.0), spin: float = 0.0
@@ -164,6 +175,17 @@ class Simulation:
         self,
         center: _Vec,
         vertices: List[_Vec],
+        material: str,
+        angle: float = 0.0,
+        velocity: _Vec = (0.0, 0.0),
+        spin: float = 0.0,
+        fixed: bool = False,
+        tag: int = 0,
+    ) -> int: ...
+    def add_clump(
+        self,
+        center: _Vec,
+        disks: List[Tuple[float, float, float]],
         material: str,
         angle: float = 0.0,
         velocity: _Vec = (0.0, 0.0),

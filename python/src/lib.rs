@@ -187,6 +187,11 @@ fn material_named(world: &moreau::World, name: &str) -> PyResult<usize> {
     world.material_named(name).map_err(error)
 }
 
+/// A clump's shape from Python's `(x, y, r)` triples.
+fn clump(center: (f64, f64), disks: Vec<(f64, f64, f64)>) -> BodySpec {
+    BodySpec::clump(vec2(center), disks.into_iter().map(|(x, y, r)| (DVec2::new(x, y), r)).collect(), 0)
+}
+
 #[allow(clippy::too_many_arguments)]
 fn body_spec(
     world: &moreau::World,
@@ -277,6 +282,25 @@ impl World {
     ) -> PyResult<usize> {
         let shape = BodySpec::polygon(vec2(center), vertices.into_iter().map(vec2).collect(), 0);
         let spec = body_spec(&self.0, shape, material, angle, velocity, spin, fixed, tag)?;
+        self.add(&spec)
+    }
+
+    /// Adds a clump: disks `(x, y, r)` (centres relative to `center`) that overlap into one
+    /// rigid grain, turning about their union's centroid; returns its index.
+    #[pyo3(signature = (center, disks, material, angle = 0.0, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0))]
+    #[allow(clippy::too_many_arguments)]
+    fn add_clump(
+        &mut self,
+        center: (f64, f64),
+        disks: Vec<(f64, f64, f64)>,
+        material: &str,
+        angle: f64,
+        velocity: (f64, f64),
+        spin: f64,
+        fixed: bool,
+        tag: u32,
+    ) -> PyResult<usize> {
+        let spec = body_spec(&self.0, clump(center, disks), material, angle, velocity, spin, fixed, tag)?;
         self.add(&spec)
     }
 
@@ -657,6 +681,25 @@ impl Simulation {
     ) -> PyResult<usize> {
         let shape = BodySpec::polygon(vec2(center), vertices.into_iter().map(vec2).collect(), 0);
         let spec = body_spec(&self.0.world, shape, material, angle, velocity, spin, fixed, tag)?;
+        self.0.add_body(&spec).map_err(error)
+    }
+
+    /// Adds a clump between steps (disks `(x, y, r)` relative to `center`); the keywords are
+    /// `World.add_clump`'s; returns its index.
+    #[pyo3(signature = (center, disks, material, angle = 0.0, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0))]
+    #[allow(clippy::too_many_arguments)]
+    fn add_clump(
+        &mut self,
+        center: (f64, f64),
+        disks: Vec<(f64, f64, f64)>,
+        material: &str,
+        angle: f64,
+        velocity: (f64, f64),
+        spin: f64,
+        fixed: bool,
+        tag: u32,
+    ) -> PyResult<usize> {
+        let spec = body_spec(&self.0.world, clump(center, disks), material, angle, velocity, spin, fixed, tag)?;
         self.0.add_body(&spec).map_err(error)
     }
 

@@ -4,6 +4,7 @@ during solves."""
 
 import csv
 import json
+import math
 import os
 import subprocess
 import threading
@@ -448,6 +449,23 @@ def test_a_fixed_plate_given_a_velocity_from_python_carries_a_grain_as_a_belt_do
         turning.add_polygon((0.0, 3.0), [(0.0, 0.0), (float("inf"), 0.0), (0.0, 1.0)], "rubber")
     with pytest.raises(moreau.MoreauError, match="spin 1 needs the effect rotation"):
         sim.add_disk((0.0, 3.0), 0.1, "rubber", spin=1.0)
+
+
+def test_a_clump_from_python_topples_and_lies_on_both_disks_with_its_centre_falling_straight():
+    # A dimer (two disks of radius 0.1, centres 0.16 apart) standing tilted by 0.05 rad on a
+    # frictionless floor: no horizontal force, so its centre falls straight down as it topples.
+    world = moreau.World([("rubber", 1000.0)], gravity=(0.0, -9.81), rotation=True)
+    world.add_wall((-2.0, 0.0), (2.0, 0.0), "rubber")
+    axis = (-math.sin(0.05), math.cos(0.05))
+    dimer = world.add_clump((0.0, 0.1), [(0.0, 0.0, 0.1), (0.16 * axis[0], 0.16 * axis[1], 0.1)], "rubber")
+    sim = moreau.Simulation(world, h=1e-3, tol=1e-8)
+    x0 = sim.positions[dimer, 0]
+    for _ in range(2500):
+        sim.step()
+    assert abs(sim.positions[dimer, 0] - x0) < 1e-9
+    assert abs(sim.positions[dimer, 1] - 0.1) < 1e-5, "lying on both disks"
+    with pytest.raises(moreau.MoreauError, match="clump disk 1 neither overlaps nor touches"):
+        sim.add_clump((1.0, 1.0), [(0.0, 0.0, 0.1), (0.5, 0.0, 0.1)], "rubber")
 
 
 def test_a_shuffled_packing_read_from_python_is_numbered_in_rows_and_each_row_finds_its_body(tmp_path):
