@@ -75,6 +75,71 @@ fn a_standing_dimer_topples_with_its_centre_falling_straight_on_a_frictionless_f
     assert_eq!(sim.contacts().iter().filter(|c| c.impulse[0] > 0.0).count(), 2, "lying on both disks");
 }
 
+/// Two dimers stacked on a floor segment, and a third on a fixed polygon plate, come to rest:
+/// the upper dimer on the lower by two contacts between their disks, the floor carrying both
+/// weights (to 1e-6), the plate's dimer at one disk radius above it (to 1e-6 m), every step
+/// solved to 1e-8 (with parry2d's f32 normals the plate's two supports disagreed by 1e-7 rad and
+/// NLGS cycled at 3e-8).
+#[test]
+fn stacked_dimers_and_a_dimer_on_a_polygon_rest_on_every_pair_of_disks() {
+    let dimer = |x: f64, y: f64| {
+        format!("[[body]]\nclump = {{ center = [{x}, {y}], disks = [[-0.08, 0.0, 0.1], [0.08, 0.0, 0.1]] }}\n")
+    };
+    let text = format!(
+        "effects = [\"gravity\", \"friction\", \"rotation\"]\n[time]\nstep = 1e-3\nsteps = 600\n[solver]\ntol = 1e-8\n\
+         max_iter = 20000\n[contact]\nfriction = 0.5\n[[material]]\nname = \"m\"\ndensity = 1000.0\n\
+         [[wall]]\nsegment = [[-1.0, 0.0], [1.0, 0.0]]\n{}{}\
+         [[body]]\npolygon = {{ center = [3.0, -0.05], vertices = [[-0.5, -0.05], [0.5, -0.05], [0.5, 0.05], [-0.5, 0.05]] }}\n\
+         fixed = true\n{}",
+        dimer(0.0, 0.1005),
+        dimer(0.0, 0.302),
+        dimer(3.0, 0.101)
+    );
+    let (mut sim, steps) = simulation(&text);
+    for _ in 0..steps {
+        let r = sim.step().unwrap();
+        assert!(r.converged, "step {} error {}", r.step, r.error);
+    }
+    let weight = 9.81 * (sim.world.bodies.mass[0] + sim.world.bodies.mass[1]);
+    let floor = sim.wall_loads()[0].force;
+    assert!(floor[0].abs() < 1e-6 * weight && (floor[1] + weight).abs() < 1e-6 * weight, "{floor:?} vs {weight}");
+    let pairs = sim.contacts().iter().filter(|c| {
+        c.contact.i == 0 && c.impulse[0] > 0.0 && c.contact.other == moreau::detection::Antagonist::Body(1)
+    });
+    assert_eq!(pairs.count(), 2, "the upper dimer rests on both disks of the lower");
+    assert!((sim.position(1).y - 0.3).abs() < 1e-6 && sim.velocity(1).length() < 1e-9, "{}", sim.position(1));
+    assert!((sim.position(3).y - 0.1).abs() < 1e-6 && sim.velocity(3).length() < 1e-9, "{}", sim.position(3));
+}
+
+/// A deposition of trimers: each grain is the shape scaled to its drawn radius (bounding radius
+/// within [r_min, r_max]), turned at random, and the deposit, loose at first, settles into a
+/// pile whose grains touch by several disks.
+#[test]
+fn a_deposition_of_trimers_settles() {
+    let text = "effects = [\"gravity\", \"friction\", \"rotation\"]\n[time]\nstep = 1e-3\nsteps = 600\n[solver]\ntol = 1e-4\n\
+                max_iter = 2000\n[contact]\nfriction = 0.4\n[[material]]\nname = \"m\"\ndensity = 1000.0\n\
+                [[wall]]\ncontainer = { min = [0.0, 0.0], max = [0.3, 0.5] }\n[[generate]]\nkind = \"deposition\"\ncount = 150\n\
+                radius = [0.008, 0.012]\nregion = { min = [0.0, 0.0], max = [0.3, 0.5] }\n\
+                clump = [[0.0, 0.4619, 0.5], [-0.4, -0.2309, 0.5], [0.4, -0.2309, 0.5]]\n";
+    let (mut sim, steps) = simulation(text);
+    let b = &sim.world.bodies;
+    assert_eq!(b.clumps.len(), 150);
+    for k in 0..b.len() {
+        assert!((0.008 - 1e-12..=0.012 + 1e-12).contains(&b.bounding_radius[k]), "{}", b.bounding_radius[k]);
+    }
+    let angles: Vec<f64> = (0..b.len()).map(|k| sim.angle(k)).collect();
+    assert!(angles.iter().any(|a| (a - angles[0]).abs() > 0.1), "turned at random");
+    for _ in 0..steps {
+        sim.step().unwrap();
+    }
+    let per_grain = sim.contacts().iter().filter(|c| c.impulse[0] > 0.0).count() as f64 / 150.0;
+    assert!(
+        per_grain > 1.5 && sim.world.kinetic_energy() < 1e-3,
+        "{per_grain} contacts a grain, {} J",
+        sim.world.kinetic_energy()
+    );
+}
+
 /// A clump is written as a polygon cell over its outline, and `moreau picture` reads it back:
 /// the outline's area is the union's (to 2 %, its sampling).
 #[test]

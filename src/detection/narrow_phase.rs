@@ -1,12 +1,9 @@
-//! Exact narrow phase. Disk–disk and disk–segment are closed-form in f64 (a clump's disks each
-//! as a disk, a contact per pair of disks that touch); disk–polygon goes
-//! through parry2d (f32, posed relative to the disk so precision follows grain size, not the
-//! distance from the origin); polygon–polygon and polygon–segment by SAT and clipping in f64.
+//! Exact narrow phase, in f64: disk–disk, disk–segment and disk–polygon closed-form (a clump's
+//! disks each as a disk, a contact per pair of disks that touch), polygon–polygon and
+//! polygon–segment by SAT and clipping. Disk–polygon is not parry2d's f32 query: its normals,
+//! 1e-7 rad off, tilted a clump's two supports on one face against each other, and NLGS cycled.
 
-use glam::{DVec2, Vec2};
-use parry2d::math::Pose;
-use parry2d::query;
-use parry2d::shape::{Ball, ConvexPolygon};
+use glam::DVec2;
 
 use super::polygon_clip::polygon_polygon;
 use super::{Antagonist, Configuration, DetectedContact};
@@ -36,32 +33,32 @@ pub fn disk_segment(x: DVec2, r: f64, a: DVec2, b: DVec2) -> (f64, DVec2, DVec2)
     (gap, n, c + n * (0.5 * gap))
 }
 
-/// Contact of a disk (centre `x`, radius `r`) with a convex polygon posed at `xp`, angle `ap`,
-/// through parry2d, posed relative to the disk so that precision follows grain size.
-/// Returns (point, normal from the polygon to the disk, gap).
-fn disk_polygon(
-    x: DVec2,
-    r: f64,
-    polygon: &ConvexPolygon,
-    xp: DVec2,
-    ap: f64,
-    alert: f64,
-) -> Option<(DVec2, DVec2, f64)> {
-    let pose_disk = Pose::new(Vec2::ZERO, 0.0);
-    let pose_poly = Pose::new(v32(xp - x), ap as f32);
-    let ball = Ball::new(r as f32);
-    match query::contact(&pose_disk, &ball, &pose_poly, polygon, alert as f32) {
-        Ok(Some(c)) => Some((x + 0.5 * (v64(c.point1) + v64(c.point2)), -v64(c.normal1), c.dist as f64)),
-        _ => None,
+/// Contact of a disk (centre `x`, radius `r`) with a convex polygon (counter-clockwise
+/// vertices `local` in its frame) posed at `xp`, angle `ap`, in f64, relative to the disk so that
+/// precision follows grain size: the nearest edge outside, the least deep face inside. Returns
+/// (mid-gap point, normal from the polygon to the disk, gap) when the gap is within `alert`.
+fn disk_polygon(x: DVec2, r: f64, local: &[DVec2], xp: DVec2, ap: f64, alert: f64) -> Option<(DVec2, DVec2, f64)> {
+    let rot = DVec2::from_angle(ap);
+    let vertex = |k: usize| xp - x + rot.rotate(local[k % local.len()]);
+    // The face the centre lies farthest outside of (least deep inside, when inside them all).
+    let (mut depth, mut face) = (f64::NEG_INFINITY, DVec2::Y);
+    for k in 0..local.len() {
+        let (a, b) = (vertex(k), vertex(k + 1));
+        let outward = (b - a).perp().normalize_or_zero() * -1.0;
+        let s = -a.dot(outward);
+        if s > depth {
+            (depth, face) = (s, outward);
+        }
     }
-}
-
-fn v32(v: DVec2) -> Vec2 {
-    Vec2::new(v.x as f32, v.y as f32)
-}
-
-fn v64(v: Vec2) -> DVec2 {
-    DVec2::new(v.x as f64, v.y as f64)
+    let (gap, normal, point) = if depth <= 0.0 {
+        (depth - r, face, x - face * (0.5 * (depth + r)))
+    } else {
+        (0..local.len())
+            .map(|k| disk_segment(DVec2::ZERO, r, vertex(k), vertex(k + 1)))
+            .min_by(|p, q| p.0.total_cmp(&q.0))
+            .map(|(gap, n, point)| (gap, n, x + point))?
+    };
+    (gap <= alert).then_some((point, normal, gap))
 }
 
 /// Contacts between bodies `i < j`, body `j` taken at its position plus `image` (a periodic
@@ -95,7 +92,7 @@ pub fn body_body(
             }
         }
         (BodyShape::Polygon(p), _) => {
-            let polygon = &bodies.polygons[p as usize].parry;
+            let polygon = &bodies.polygons[p as usize].vertices;
             for (b, (x, radius)) in round_pieces(bodies, config, j, image).into_iter().enumerate() {
                 if let Some((point, normal, gap)) = disk_polygon(x, radius, polygon, xi, config.angle_of(i), alert) {
                     push(out, piece_pair(0, b), point, -normal, gap);
@@ -103,7 +100,7 @@ pub fn body_body(
             }
         }
         (_, BodyShape::Polygon(p)) => {
-            let polygon = &bodies.polygons[p as usize].parry;
+            let polygon = &bodies.polygons[p as usize].vertices;
             for (a, (x, radius)) in round_pieces(bodies, config, i, DVec2::ZERO).into_iter().enumerate() {
                 if let Some((point, normal, gap)) = disk_polygon(x, radius, polygon, xj, config.angle_of(j), alert) {
                     push(out, piece_pair(a, 0), point, normal, gap);
@@ -172,7 +169,8 @@ pub fn body_wall(
             }
         }
         WallShape::Polygon(poly) => {
-            if let Some((point, normal, gap)) = disk_polygon(x, radius, &poly.parry, wall.center, wall.angle, alert) {
+            if let Some((point, normal, gap)) = disk_polygon(x, radius, &poly.vertices, wall.center, wall.angle, alert)
+            {
                 push(out, a as u64, point, normal, gap);
             }
         }
@@ -206,6 +204,24 @@ mod tests {
         assert!((p - DVec2::new(0.0, 0.75)).length() < 1e-15);
         let (gap, n, _) = disk_segment(DVec2::new(3.0, 0.9), 1.0, DVec2::new(-1.0, 0.0), DVec2::new(1.0, 0.0));
         assert!((gap - ((2.0f64).hypot(0.9) - 1.0)).abs() < 1e-14 && n.x > 0.0 && n.y > 0.0);
+    }
+
+    #[test]
+    fn disk_polygon_is_exact_outside_a_face_at_a_corner_and_inside() {
+        let square = [DVec2::new(-1.0, -1.0), DVec2::new(1.0, -1.0), DVec2::new(1.0, 1.0), DVec2::new(-1.0, 1.0)];
+        let (xp, ap) = (DVec2::new(1e4, 5.0), std::f64::consts::FRAC_PI_2);
+        // Above the top face (the square turned a quarter: still a square), 0.25 away.
+        let (p, n, gap) = disk_polygon(xp + DVec2::new(0.3, 1.5), 0.25, &square, xp, ap, 1.0).unwrap();
+        assert!((gap - 0.25).abs() < 1e-12 && (n - DVec2::Y).length() < 1e-12, "{gap} {n}");
+        assert!((p - (xp + DVec2::new(0.3, 1.125))).length() < 1e-9, "{p}");
+        // Beyond a corner: the normal points from the corner.
+        let (_, n, gap) = disk_polygon(xp + DVec2::new(2.0, 2.0), 0.5, &square, xp, ap, 1.0).unwrap();
+        assert!((gap - (2f64.sqrt() - 0.5)).abs() < 1e-12 && (n - DVec2::ONE.normalize()).length() < 1e-12);
+        // Centre inside, nearest the right face: pushed out along +x.
+        let (p, n, gap) = disk_polygon(xp + DVec2::new(0.9, 0.2), 0.5, &square, xp, ap, 1.0).unwrap();
+        assert!((gap + 0.6).abs() < 1e-12 && (n - DVec2::X).length() < 1e-12, "{gap} {n}");
+        assert!((p - (xp + DVec2::new(0.7, 0.2))).length() < 1e-9, "{p}");
+        assert!(disk_polygon(xp + DVec2::new(0.0, 3.0), 0.5, &square, xp, ap, 0.1).is_none());
     }
 
     #[test]

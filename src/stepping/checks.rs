@@ -1,10 +1,11 @@
 //! What a world must satisfy to be stepped, and what every step's new state must satisfy:
 //! scenes that cannot be integrated are refused up front, suspicious starts are warned about,
-//! and a step whose state is not finite or runs away is undone and reported.
+//! and a step whose state is not finite, runs away or leaves grains crushed into each other is
+//! undone and reported.
 
 use glam::DVec2;
 
-use crate::detection::{Antagonist, Configuration, Detector};
+use crate::detection::{Antagonist, Configuration, DetectedContact, Detector};
 use crate::world::World;
 
 /// f64 positions must resolve this fraction of the smallest grain radius.
@@ -153,6 +154,67 @@ fn start_overlaps(world: &World) -> Vec<String> {
     warnings
 }
 
+/// An overlap deeper than this share of the smaller body's bounding radius, left after a step's
+/// position projection, is no rounding or loose solve: the contact problem had no answer.
+pub const CRUSH: f64 = 0.5;
+
+/// `, or it is squeezed …` when some wall or fixed body moves by prescription: a grain caught
+/// between two such motions has no finite impulse to hold it.
+fn squeeze_hint(world: &World) -> &'static str {
+    let b = &world.bodies;
+    let driven = (0..b.len()).any(|j| b.inv_mass[j] == 0.0 && (b.velocity[j] != DVec2::ZERO || b.spin_of(j) != 0.0))
+        || world.walls.iter().any(|w| w.is_moving());
+    if driven {
+        ", or it is squeezed between walls or fixed bodies whose motion is prescribed, which no contact force can stop"
+    } else {
+        ""
+    }
+}
+
+/// The deepest pair left overlapping by more than [`CRUSH`] after a step that the position
+/// projection could not bring back to its `target` (its overlap at the start of the step, within
+/// `slack` of the radius, or 1e-3 of it), in words: a grain that started inside a wall stays
+/// there and is only warned about, but one pressed deeper step after step is caught. Exact
+/// antiparallel constraints (a grain pushed into a wall by a driven body) make the problem
+/// infeasible: the impulses grow without bound and cancel, the grain stays, and the driven body
+/// passes through it.
+pub fn check_overlaps(
+    contacts: &[DetectedContact],
+    gaps: &[f64],
+    target: &[f64],
+    slack: f64,
+    world: &World,
+) -> Result<(), String> {
+    let b = &world.bodies;
+    let size = |c: &DetectedContact| match c.other {
+        Antagonist::Body(j) => b.bounding_radius[c.i].min(b.bounding_radius[j]),
+        Antagonist::Wall(_) => b.bounding_radius[c.i],
+    };
+    let pressed = |(a, c): &(usize, &DetectedContact)| gaps[*a] < target[*a] - slack.max(1e-3) * size(c);
+    let deepest = contacts
+        .iter()
+        .enumerate()
+        .filter(pressed)
+        .map(|(a, c)| (c, -gaps[a] / size(c)))
+        .max_by(|x, y| x.1.total_cmp(&y.1));
+    match deepest {
+        Some((c, depth)) if depth > CRUSH => {
+            let other = match c.other {
+                Antagonist::Body(j) => format!("body {j}"),
+                Antagonist::Wall(w) => format!("wall {w}"),
+            };
+            Err(format!(
+                "body {} and {other} overlap by {:.0} % of the smaller one's radius, pressed deeper than the step's \
+                 projection could undo: its contact problem had no answer; the time step is too large for the forces{}",
+                c.i,
+                100.0 * depth,
+                squeeze_hint(world)
+            ))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// The first body whose state after a step is not finite or ran away (moved farther than
 /// [`RUNAWAY`] scene extents within the step), in words.
 pub fn check_state(start: &[DVec2], world: &World, extent: f64) -> Result<(), String> {
@@ -171,18 +233,10 @@ pub fn check_state(start: &[DVec2], world: &World, extent: f64) -> Result<(), St
         }
         let moved = b.position[k].distance(*from);
         if moved > RUNAWAY * extent {
-            // A grain caught between two prescribed motions has no finite impulse to stop it.
-            let driven = (0..b.len())
-                .any(|j| b.inv_mass[j] == 0.0 && (b.velocity[j] != DVec2::ZERO || b.spin_of(j) != 0.0))
-                || world.walls.iter().any(|w| w.is_moving());
-            let squeeze = if driven {
-                ", or it is squeezed between walls or fixed bodies whose motion is prescribed, which no contact force can stop"
-            } else {
-                ""
-            };
             return Err(format!(
                 "body {k} ran away: it moved {moved:.3e} m in one step, more than {RUNAWAY:e} times the scene's extent \
-                 ({extent:.3e} m); the time step is too large for the forces{squeeze}"
+                 ({extent:.3e} m); the time step is too large for the forces{}",
+                squeeze_hint(world)
             ));
         }
     }

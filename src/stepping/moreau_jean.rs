@@ -18,7 +18,7 @@ use std::time::Instant;
 
 use glam::DVec2;
 
-use super::checks::check_state;
+use super::checks::{check_overlaps, check_state};
 use super::projection::{end_of_step_gaps, project_positions, targets};
 use super::simulation::{ContactState, Simulation, StepError, StepReport};
 use crate::detection::{Antagonist, Configuration, DetectedContact, Detector};
@@ -486,6 +486,7 @@ fn apply(
     // detected at the end of the step (those the start missed must not overlap at all).
     update_bodies(&mut sim.world, &v_end, dofs, (h, theta));
     let projection_start = Instant::now();
+    let mut crushed = None;
     if let Some(problem) = &problem {
         let Delassus::MatrixFree(op) = &problem.w else { unreachable!("the step builds a matrix-free problem") };
         let (end, end_op);
@@ -515,11 +516,12 @@ fn apply(
         report.projected = projected;
         report.add_gpu_traffic(traffic);
         report.max_penetration = gaps.iter().fold(0.0, |m, g| m.max(-g));
+        crushed = check_overlaps(contacts, &gaps, &target, sim.settings.projection_slack, &sim.world).err();
         // Less the detection at the end of the step, which counts as detection.
         report.projection_seconds =
             projection_start.elapsed().as_secs_f64() - (detection_seconds - report.detection_seconds);
     }
-    if let Err(message) = check_state(&before.position, &sim.world, extent) {
+    if let Some(message) = crushed.or_else(|| check_state(&before.position, &sim.world, extent).err()) {
         before.restore(&mut sim.world);
         return Err(StepError::Diverged { step, message });
     }
