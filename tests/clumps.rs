@@ -77,7 +77,8 @@ fn a_standing_dimer_topples_with_its_centre_falling_straight_on_a_frictionless_f
 
 /// Two dimers stacked on a floor segment, and a third on a fixed polygon plate, come to rest:
 /// the upper dimer on the lower by two contacts between their disks, the floor carrying both
-/// weights (to 1e-6), the plate's dimer at one disk radius above it (to 1e-6 m), every step
+/// weights (to 1e-6), the plate's dimer at one disk radius above it (to 1e-6 m), each pair of
+/// grains one neighbour however many contacts it has, every step
 /// solved to 1e-8 (with parry2d's f32 normals the plate's two supports disagreed by 1e-7 rad and
 /// NLGS cycled at 3e-8).
 #[test]
@@ -109,6 +110,10 @@ fn stacked_dimers_and_a_dimer_on_a_polygon_rest_on_every_pair_of_disks() {
     assert_eq!(pairs.count(), 2, "the upper dimer rests on both disks of the lower");
     assert!((sim.position(1).y - 0.3).abs() < 1e-6 && sim.velocity(1).length() < 1e-9, "{}", sim.position(1));
     assert!((sim.position(3).y - 0.1).abs() < 1e-6 && sim.velocity(3).length() < 1e-9, "{}", sim.position(3));
+    // Contacts a grain: 4 for the lower dimer (floor and upper dimer, two each), 2 for each other;
+    // neighbours: 2 for the lower dimer, 1 for each other (double contacts count once).
+    let m = sim.measures();
+    assert_eq!((m.coordination, m.neighbours, m.rattlers), (8.0 / 3.0, 4.0 / 3.0, 0), "{m:?}");
 }
 
 /// A deposition of trimers: each grain is the shape scaled to its drawn radius (bounding radius

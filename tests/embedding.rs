@@ -255,7 +255,7 @@ fn a_resting_column_has_the_packing_coordination_and_stress_of_statics() {
     let phi = std::f64::consts::PI * r / (2.0 * width);
     assert!((m.packing_fraction - phi).abs() < 1e-6, "φ {} vs {phi}", m.packing_fraction);
     // Bottom and middle disks carry two contacts each; the top one, one: a rattler.
-    assert_eq!((m.coordination, m.rattlers), (2.0, 1), "{m:?}");
+    assert_eq!((m.coordination, m.neighbours, m.rattlers), (2.0, 2.0, 1), "{m:?}");
     // The grains touch along the vertical only: one direction, the largest anisotropy.
     assert_eq!((m.fabric_xx, m.fabric_yy, m.fabric_xy, m.anisotropy), (0.0, 1.0, 0.0, 2.0), "{m:?}");
     // The floor carries the column's weight; the side walls nothing.

@@ -321,7 +321,7 @@ class Simulation:
         return self._inner.step()
 
     def measures(self) -> Dict[str, Any]:
-        """packing_fraction, coordination, rattlers, stress_xx, stress_yy, stress_xy, fabric_xx,
+        """packing_fraction, coordination, neighbours, rattlers, stress_xx, stress_yy, stress_xy, fabric_xx,
         fabric_yy, fabric_xy, anisotropy of the current state (definitions in README,
         "Simulating a scene")."""
         return self._inner.measures()

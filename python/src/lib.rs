@@ -516,7 +516,7 @@ impl Simulation {
         json_dict(py, &report)
     }
 
-    /// Packing fraction, coordination, rattlers and the mean stress tensor (a dict).
+    /// Packing fraction, coordination, neighbours, rattlers, the mean stress and fabric tensors (a dict).
     fn measures<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         json_dict(py, &self.0.measures())
     }

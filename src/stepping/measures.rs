@@ -8,6 +8,9 @@
 //! * **Coordination**: active contacts (normal impulse > 0) per grain, over the grains that are
 //!   not rattlers; a rattler has fewer than 2 active contacts. A contact between two grains
 //!   counts for both, a contact with a wall or a fixed body for the grain.
+//! * **Neighbours**: the distinct bodies and walls each of those grains touches through active
+//!   contacts, on average. Equal to the coordination for disks; below it where clumps or
+//!   polygons touch by two points (a "double contact" counts two contacts, one neighbour).
 //! * **Stress** (Love–Weber, compression positive): `σ = (1/A) Σ_c ℓ_c ⊗ f_c` over the active
 //!   contacts, `f_c` the mean force of the step on the grain and `ℓ_c` from the contact point to
 //!   the grain's centre, summed over the moving grains of each contact (for two grains, the
@@ -38,6 +41,8 @@ pub struct Measures {
     pub coordination: f64,
     /// Grains with fewer than 2 active contacts.
     pub rattlers: usize,
+    /// Mean distinct bodies and walls touched per grain, rattlers excluded.
+    pub neighbours: f64,
     /// Mean stress σxx (Pa·m in 2D).
     pub stress_xx: f64,
     /// Mean stress σyy.
@@ -66,11 +71,13 @@ impl Simulation {
         let area = self.occupied_area(&grains);
         let grain_area: f64 = grains.iter().map(|&k| self.grain_area(k)).sum();
         let mut active = vec![0usize; b.len()];
+        let mut touching = Vec::new(); // (grain, what it touches), one per active contact
         let mut sum = [0.0; 3]; // ℓx fx, ℓy fy, (ℓx fy + ℓy fx) / 2
         let h = self.settings.h;
         for c in self.contacts.iter().filter(|c| c.impulse[0] > 0.0) {
             for (k, f, image) in c.loaded_bodies(h).filter(|&(k, ..)| b.inv_mass[k] > 0.0) {
                 active[k] += 1;
+                touching.push((k, if k == c.contact.i { c.contact.other } else { Antagonist::Body(c.contact.i) }));
                 let l = b.position[k] + image - c.contact.point;
                 sum[0] += l.x * f.x;
                 sum[1] += l.y * f.y;
@@ -79,6 +86,9 @@ impl Simulation {
         }
         let fabric = self.fabric();
         let carrying: Vec<usize> = grains.iter().map(|&k| active[k]).filter(|&a| a >= 2).collect();
+        touching.sort_unstable();
+        touching.dedup();
+        let neighbours = touching.iter().filter(|(k, _)| active[*k] >= 2).count();
         let per_area = |x: f64| if area > 0.0 { x / area } else { 0.0 };
         Measures {
             packing_fraction: per_area(grain_area),
@@ -88,6 +98,7 @@ impl Simulation {
                 carrying.iter().sum::<usize>() as f64 / carrying.len() as f64
             },
             rattlers: grains.len() - carrying.len(),
+            neighbours: if carrying.is_empty() { 0.0 } else { neighbours as f64 / carrying.len() as f64 },
             stress_xx: per_area(sum[0]),
             stress_yy: per_area(sum[1]),
             stress_xy: per_area(sum[2]),
