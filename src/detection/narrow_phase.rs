@@ -93,7 +93,7 @@ pub fn body_body(
         }
         (BodyShape::Polygon(p), _) => {
             let polygon = &bodies.polygons[p as usize].vertices;
-            for (b, (x, radius)) in round_pieces(bodies, config, j, image).into_iter().enumerate() {
+            for (b, (x, radius)) in round_pieces(bodies, config, j, image).enumerate() {
                 if let Some((point, normal, gap)) = disk_polygon(x, radius, polygon, xi, config.angle_of(i), alert) {
                     push(out, piece_pair(0, b), point, -normal, gap);
                 }
@@ -101,7 +101,7 @@ pub fn body_body(
         }
         (_, BodyShape::Polygon(p)) => {
             let polygon = &bodies.polygons[p as usize].vertices;
-            for (a, (x, radius)) in round_pieces(bodies, config, i, DVec2::ZERO).into_iter().enumerate() {
+            for (a, (x, radius)) in round_pieces(bodies, config, i, DVec2::ZERO).enumerate() {
                 if let Some((point, normal, gap)) = disk_polygon(x, radius, polygon, xj, config.angle_of(j), alert) {
                     push(out, piece_pair(a, 0), point, normal, gap);
                 }
@@ -110,8 +110,8 @@ pub fn body_body(
         // Disks and clumps: every disk of one against every disk of the other.
         (_, _) => {
             let theirs = round_pieces(bodies, config, j, image);
-            for (a, (xa, ra)) in round_pieces(bodies, config, i, DVec2::ZERO).into_iter().enumerate() {
-                for (b, &(xb, rb)) in theirs.iter().enumerate() {
+            for (a, (xa, ra)) in round_pieces(bodies, config, i, DVec2::ZERO).enumerate() {
+                for (b, (xb, rb)) in theirs.clone().enumerate() {
                     let (gap, normal, point) = disk_disk(xa, ra, xb, rb);
                     if gap <= alert {
                         push(out, piece_pair(a, b), point, normal, gap);
@@ -122,15 +122,25 @@ pub fn body_body(
     }
 }
 
-/// A disk's or a clump's disks in the world frame, body `k` shifted by `image` (empty for a
-/// polygon).
-fn round_pieces(bodies: &Bodies, config: &Configuration, k: usize, image: DVec2) -> Vec<(DVec2, f64)> {
+/// A disk's or a clump's disks in the world frame, body `k` shifted by `image` (none for a
+/// polygon), without allocating: the narrow phase calls this for every candidate pair.
+fn round_pieces<'a>(
+    bodies: &'a Bodies,
+    config: &Configuration,
+    k: usize,
+    image: DVec2,
+) -> impl Iterator<Item = (DVec2, f64)> + Clone + 'a {
     let x = config.position[k] + image;
-    match bodies.shape[k] {
-        BodyShape::Disk { radius } => vec![(x, radius)],
-        BodyShape::Clump(c) => bodies.clump_disks(c, x, config.angle_of(k)).collect(),
-        BodyShape::Polygon(_) => Vec::new(),
-    }
+    let rot = DVec2::from_angle(config.angle_of(k));
+    let own = match bodies.shape[k] {
+        BodyShape::Disk { radius } => Some((x, radius)),
+        _ => None,
+    };
+    let parts: &[(DVec2, f64)] = match bodies.shape[k] {
+        BodyShape::Clump(c) => &bodies.clumps[c as usize].disks,
+        _ => &[],
+    };
+    own.into_iter().chain(parts.iter().map(move |(o, r)| (x + rot.rotate(*o), *r)))
 }
 
 /// The feature of a contact between disk `a` of body `i` and disk `b` of its antagonist (0 for
