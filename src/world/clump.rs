@@ -69,6 +69,10 @@ pub(crate) fn disk_union(disks: &[(DVec2, f64)]) -> Result<DiskUnion, String> {
             "clump disk {k} neither overlaps nor touches the disks before it: a clump's disks must make one grain"
         ));
     }
+    let size = disks.iter().map(|(c, r)| c.length() + r).fold(0.0, f64::max);
+    if !(size * size).is_finite() {
+        return Err(format!("clump disks reach {size:e} m from the given centre: beyond f64, scale the lengths"));
+    }
     let arcs = uncovered_arcs(disks);
     let (mut area, mut first, mut second) = (0.0, DVec2::ZERO, 0.0);
     for arc in &arcs {
@@ -78,7 +82,6 @@ pub(crate) fn disk_union(disks: &[(DVec2, f64)]) -> Result<DiskUnion, String> {
         second += s;
     }
     let centroid = first / area;
-    let size = disks.iter().map(|(c, r)| c.length() + r).fold(0.0, f64::max);
     if !(area.is_finite() && area > 1e-12 * size * size) {
         return Err(format!("degenerate clump: area {area:e} for its size {size:e}"));
     }
@@ -289,5 +292,7 @@ mod tests {
         let e = disk_union(&[(DVec2::ZERO, 1.0), (DVec2::X, f64::NAN)]).unwrap_err();
         assert!(e.contains("clump disk 1"), "{e}");
         assert!(disk_union(&[]).unwrap_err().contains("1 to 256"));
+        let e = disk_union(&[(DVec2::new(1e300, 0.0), 1.0), (DVec2::new(1e300, 0.5), 1.0)]).unwrap_err();
+        assert!(e.contains("beyond f64"), "{e}");
     }
 }
