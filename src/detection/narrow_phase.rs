@@ -131,16 +131,15 @@ fn round_pieces<'a>(
     image: DVec2,
 ) -> impl Iterator<Item = (DVec2, f64)> + Clone + 'a {
     let x = config.position[k] + image;
-    let rot = DVec2::from_angle(config.angle_of(k));
     let own = match bodies.shape[k] {
         BodyShape::Disk { radius } => Some((x, radius)),
         _ => None,
     };
-    let parts: &[(DVec2, f64)] = match bodies.shape[k] {
-        BodyShape::Clump(c) => &bodies.clumps[c as usize].disks,
-        _ => &[],
+    let clump = match bodies.shape[k] {
+        BodyShape::Clump(c) => Some(bodies.clump_disks(c, x, config.angle_of(k))),
+        _ => None,
     };
-    own.into_iter().chain(parts.iter().map(move |(o, r)| (x + rot.rotate(*o), *r)))
+    own.into_iter().chain(clump.into_iter().flatten())
 }
 
 /// The feature of a contact between disk `a` of body `i` and disk `b` of its antagonist (0 for

@@ -5,6 +5,7 @@
 
 use glam::DVec2;
 
+use super::projection::pair_size;
 use crate::detection::{Antagonist, Configuration, DetectedContact, Detector};
 use crate::world::World;
 
@@ -185,11 +186,7 @@ pub fn check_overlaps(
     slack: f64,
     world: &World,
 ) -> Result<(), String> {
-    let b = &world.bodies;
-    let size = |c: &DetectedContact| match c.other {
-        Antagonist::Body(j) => b.bounding_radius[c.i].min(b.bounding_radius[j]),
-        Antagonist::Wall(_) => b.bounding_radius[c.i],
-    };
+    let size = |c: &DetectedContact| pair_size(&world.bodies, c);
     let pressed = |(a, c): &(usize, &DetectedContact)| gaps[*a] < target[*a] - slack.max(1e-3) * size(c);
     let deepest = contacts
         .iter()

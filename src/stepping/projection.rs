@@ -11,7 +11,7 @@ use crate::detection::{Antagonist, DetectedContact};
 use crate::parallel::map_indices;
 use crate::problem::{ContactProblem, Delassus, MatrixFree};
 use crate::solvers::{SolverKind, SolverOptions, StopCriterion};
-use crate::world::{Wall, World};
+use crate::world::{Bodies, Wall, World};
 
 /// Sweeps of the projection, a correction of positions bounded in cost: a quarter of the step's
 /// solve, within these bounds; what it leaves shows in the step's `max_penetration`.
@@ -85,10 +85,7 @@ pub(super) fn project_positions(
     solve_iterations: usize,
 ) -> (usize, (u64, u64)) {
     let b = &world.bodies;
-    let size = |c: &DetectedContact| match c.other {
-        Antagonist::Body(j) => b.bounding_radius[c.i].min(b.bounding_radius[j]),
-        Antagonist::Wall(_) => b.bounding_radius[c.i],
-    };
+    let size = |c: &DetectedContact| pair_size(b, c);
     let excess = |a: usize| targets[a] - gaps[a];
     let deeper = (0..contacts.len()).filter(|&a| excess(a) > slack * size(&contacts[a])).count();
     if deeper == 0 {
@@ -244,6 +241,15 @@ pub(super) fn targets(contacts: &[DetectedContact], start: &[DetectedContact]) -
         })
         .collect();
     (targets, missed)
+}
+
+/// The length a pair's overlap is measured against: the smaller bounding radius of its bodies
+/// (the body's own against a wall).
+pub(crate) fn pair_size(b: &Bodies, c: &DetectedContact) -> f64 {
+    match c.other {
+        Antagonist::Body(j) => b.bounding_radius[c.i].min(b.bounding_radius[j]),
+        Antagonist::Wall(_) => b.bounding_radius[c.i],
+    }
 }
 
 #[cfg(test)]

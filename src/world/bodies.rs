@@ -398,7 +398,7 @@ impl Bodies {
     }
 
     /// A clump body's disks in the world frame (centre, radius), at `position` and `angle`.
-    pub fn clump_disks(&self, c: u32, position: DVec2, angle: f64) -> impl Iterator<Item = (DVec2, f64)> + '_ {
+    pub fn clump_disks(&self, c: u32, position: DVec2, angle: f64) -> impl Iterator<Item = (DVec2, f64)> + Clone + '_ {
         let rot = DVec2::from_angle(angle);
         self.clumps[c as usize].disks.iter().map(move |(o, r)| (position + rot.rotate(*o), *r))
     }
