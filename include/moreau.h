@@ -39,6 +39,8 @@ typedef enum MoreauStop {
   MOREAU_STOP_DIVERGED = 3,
   // The method broke down (a zero curvature in a conjugate gradient).
   MOREAU_STOP_BREAKDOWN = 4,
+  // The impulses grew without stopping the contacts they load: the problem may have no answer.
+  MOREAU_STOP_UNBOUNDED = 5,
 } MoreauStop;
 
 // A contact problem `u = W r + q`, `μ` per contact.

@@ -1237,3 +1237,23 @@ fn a_gpu_solve_returns_the_impulses_of_its_last_check_not_of_the_batch_queued_pa
     assert_eq!(differing, 0, "the returned impulses are those judged at the last check");
     assert_eq!(solved.judged_error, again.judged_error);
 }
+
+/// A problem with no answer (a disk pressed from opposite sides at once) is not called solved on
+/// the GPU either: its f32 sweeps grow the impulses until the relative error passes, and the
+/// backend's check of the answer, the CPU's, refuses it.
+#[test]
+fn a_problem_with_no_answer_is_not_solved_on_the_gpu() {
+    use moreau::backend::Backend;
+    use moreau::problem::block_sparse::BlockSparse;
+    let Some(ctx) = common::gpu_context() else { return };
+    let (same, opposed) = ([1.0, 0.0, 0.0, 1.0], [-1.0, 0.0, 0.0, -1.0]);
+    let w = BlockSparse::from_block_triplets(2, vec![(0, 0, same), (0, 1, opposed), (1, 0, opposed), (1, 1, same)]);
+    let p = ContactProblem::new(Delassus::Sparse(w), vec![-1.0, 0.0, -1.0, 0.0], vec![0.5, 0.5]).unwrap();
+    let opts = SolverOptions { tol: 1e-4, max_iter: 20_000, ..SolverOptions::default() };
+    let backend = Backend::gpu(ctx);
+    for kind in [SolverKind::Nlgs, SolverKind::Apgd] {
+        let rep = backend.solve(&p, kind, &opts, None).unwrap();
+        assert!(!rep.converged, "{kind}: converged with error {:e}, r = {:?}", rep.error, rep.r);
+        assert!(rep.stop == moreau::solvers::StopReason::Unbounded, "{kind}: {}", rep.stop_reason);
+    }
+}

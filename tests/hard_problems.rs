@@ -191,3 +191,46 @@ fn newton_methods_solve_the_heavy_column_and_newton_reports_its_fallbacks() {
     let refused: usize = note.split(", ").nth(1).and_then(|s| s.split(' ').next()?.parse().ok()).unwrap();
     assert!(refused > 0, "the line search was expected to refuse some directions: {:?}", newton.notes);
 }
+
+/// Two contacts of one disk pressed from opposite sides at once (`q_n = (−1, −1)`, the normals
+/// opposed: `u_n1 + u_n2 = −2` whatever the impulses), or with the second opening instead
+/// (`q_n2 = 1.5`: `r = (1, 0)` answers it). `scale` multiplies `W` (masses divided by it).
+fn opposed_pair(q_n2: f64, scale: f64) -> moreau::ContactProblem {
+    use moreau::problem::block_sparse::BlockSparse;
+    use moreau::problem::delassus::Delassus;
+    let (same, opposed) = ([scale, 0.0, 0.0, scale], [-scale, 0.0, 0.0, -scale]);
+    let w = BlockSparse::from_block_triplets(2, vec![(0, 0, same), (0, 1, opposed), (1, 0, opposed), (1, 1, same)]);
+    moreau::ContactProblem::new(Delassus::Sparse(w), vec![-1.0, 0.0, q_n2, 0.0], vec![0.5, 0.5]).unwrap()
+}
+
+/// Under the Siconos scale `max(‖q‖, ‖r‖, ‖u‖)` a problem with no answer looks solved once the
+/// impulses, growing and cancelling, are large enough: NLGS, LATIN, Newton, APGD, NLGS–Newton
+/// and the interior point all called the opposed pair converged (relative errors 1e-4 to 0,
+/// impulses 1e4 to 4.5e307). None may now; the same pair with an answer, at any mass, converges.
+#[test]
+fn a_problem_with_no_answer_is_never_called_solved() {
+    use moreau::solvers::StopReason;
+    let opts = SolverOptions { tol: 1e-4, max_iter: 20_000, ..Default::default() };
+    let kinds = SolverKind::ALL;
+    let none = opposed_pair(-1.0, 1.0);
+    let mut caught = 0;
+    for kind in kinds {
+        let rep = solve(&none, kind, &opts, None);
+        assert!(!rep.converged, "{kind}: converged with error {:e}, r = {:?}", rep.error, rep.r);
+        caught += usize::from(rep.stop == StopReason::Unbounded);
+        if rep.stop == StopReason::Unbounded {
+            assert!(rep.stop_reason.contains("may have no answer"), "{kind}: {}", rep.stop_reason);
+        }
+    }
+    assert!(caught >= 6, "only {caught} solvers stopped as unbounded");
+    for scale in [1e-6, 1.0, 1e6] {
+        let answered = opposed_pair(1.5, scale);
+        for kind in kinds {
+            let rep = solve(&answered, kind, &opts, None);
+            assert!(rep.converged, "{kind}, W × {scale:e}: {} (error {:e})", rep.stop_reason, rep.error);
+            if scale == 1.0 {
+                common::check_solution(&answered, &rep.r, 1e-3).unwrap_or_else(|e| panic!("{kind}: {e}"));
+            }
+        }
+    }
+}

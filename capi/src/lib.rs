@@ -161,6 +161,8 @@ pub enum MoreauStop {
     Diverged = 3,
     /// The method broke down (a zero curvature in a conjugate gradient).
     Breakdown = 4,
+    /// The impulses grew without stopping the contacts they load: the problem may have no answer.
+    Unbounded = 5,
 }
 
 impl From<StopReason> for MoreauStop {
@@ -171,6 +173,7 @@ impl From<StopReason> for MoreauStop {
             StopReason::Stalled => MoreauStop::Stalled,
             StopReason::Diverged => MoreauStop::Diverged,
             StopReason::Breakdown => MoreauStop::Breakdown,
+            StopReason::Unbounded => MoreauStop::Unbounded,
         }
     }
 }

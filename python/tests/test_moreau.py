@@ -124,6 +124,16 @@ def test_a_problem_from_scipy_and_from_a_dense_matrix_solves_to_tolerance():
     assert warm.iterations <= 1 and warm.converged
 
 
+def test_a_problem_with_no_answer_comes_back_unconverged_and_says_why():
+    # One disk pressed from opposite sides at once: u_n1 + u_n2 = -2 whatever the impulses.
+    W = np.array([[1.0, 0, -1, 0], [0, 1, 0, -1], [-1, 0, 1, 0], [0, -1, 0, 1]])
+    problem = moreau.Problem(W, [-1.0, 0.0, -1.0, 0.0], [0.5, 0.5])
+    for solver in ("nlgs", "interior-point"):
+        result = moreau.solve(problem, solver=solver, tol=1e-4, max_iter=20000)
+        assert not result.converged, (solver, result.error)
+        assert result.stop_reason.startswith("unbounded") and "may have no answer" in result.stop_reason
+
+
 def test_a_problem_written_from_python_reads_back_the_same(tmp_path):
     problem = moreau.read_fc2d(SEED)
     for sparse in (True, False):

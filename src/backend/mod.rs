@@ -428,6 +428,7 @@ impl Backend {
                 self.check(kind, opts)?;
                 let before = Traffic::now();
                 let mut report = solve_mixed(ctx, problem, kind, opts, r0, &self.pause)?;
+                solvers::stopping::refuse_unbounded(problem, &mut report);
                 let traffic = Traffic::since(before);
                 report.gpu_dispatches = traffic.dispatches;
                 report.gpu_bytes = traffic.bytes_up + traffic.bytes_down;

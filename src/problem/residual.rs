@@ -174,6 +174,25 @@ pub fn contact_velocity_residual_squared(
     f[0] * f[0] + f[1] * f[1] + roll * roll
 }
 
+/// How fast the contacts the impulses load still close, weighted by their normal impulses, over
+/// the largest free velocity ([`free_velocity_bound`]): `Σ r_n max(−u_n, 0) / Σ r_n / max|q|`
+/// over contacts with `r_n > 0`; 0 when none is loaded. An answer has it near 0 (a loaded
+/// contact stops); an answer to a problem with no answer has it near 1 however small its
+/// relative error: its impulses grow, cancel, and stop nothing. Invariant under scaling `r`.
+pub fn loaded_approach(q: &[f64], gap_rate: &[f64], nc: usize, r: &[f64], u: &[f64]) -> f64 {
+    let largest = (0..nc).map(|a| r[2 * a]).filter(|x| x.is_finite()).fold(0.0, f64::max);
+    let scale = free_velocity_bound(&q[..2 * nc], gap_rate);
+    if largest <= 0.0 || scale <= 0.0 || !scale.is_finite() {
+        return 0.0;
+    }
+    // Each impulse over the largest: no sum of impulses near f64's limit overflows.
+    let [weighted, weights] = chunked_sums(nc, |a| {
+        let w = (r[2 * a] / largest).max(0.0);
+        [w * (-u[2 * a]).max(0.0), w]
+    });
+    weighted / weights / scale
+}
+
 /// The largest entry of `q` with each contact's gap term (`gap_rate`, empty when none) taken off
 /// its normal entry: the largest velocity the step's free motion gives any contact.
 pub fn free_velocity_bound(q: &[f64], gap_rate: &[f64]) -> f64 {
@@ -224,5 +243,25 @@ mod tests {
         let natural = natural_map_error_gapped(&q, &mu, &[], &[0.0, 5.0], &r, &u);
         assert!((natural - residual / 0.01f64.hypot(0.002)).abs() < 1e-12, "{natural}");
         assert!(natural > 400.0 * natural_map_error_gapped(&q, &mu, &[], &[], &r, &u));
+    }
+
+    /// The loaded approach weighs each loaded contact's closing velocity by its normal impulse,
+    /// over the largest free velocity without gap terms: 0 for contacts that stop or open, 1 for
+    /// impulses that stop nothing (a pair pushed from opposite sides), whatever their size.
+    #[test]
+    fn the_loaded_approach_weighs_closing_contacts_by_their_impulses() {
+        let q = [-1.0, 0.0, -1.0, 0.0, 3.0, 0.0];
+        // Contact 0 stops, contact 1 still closes at 0.6 under twice the impulse, contact 2 is
+        // open and unloaded; the gap term of contact 2 (3.0) is no free velocity.
+        let u = [0.0, 0.0, -0.6, 0.0, 2.0, 0.0];
+        let gap = [0.0, 0.0, 3.0];
+        for size in [1e-300, 1.0, 1e300] {
+            let r = [size, 0.0, 2.0 * size, 0.1 * size, 0.0, 0.0];
+            let approach = loaded_approach(&q, &gap, 3, &r, &u);
+            assert!((approach - 2.0 * 0.6 / 3.0).abs() < 1e-12, "{size:e}: {approach}");
+        }
+        assert_eq!(loaded_approach(&q, &gap, 3, &[0.0; 6], &u), 0.0);
+        let opposed = loaded_approach(&q[..4], &[], 2, &[1e307, 0.0, 1e307, 0.0], &[-1.0, 0.0, -1.0, 0.0]);
+        assert_eq!(opposed, 1.0);
     }
 }

@@ -31,11 +31,14 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut gamma: Vec<f64>) -> S
     project(&mut gamma, &thresholds);
     let mut monitor = Monitor::new(p, opts, SolverKind::Apgd, &gamma);
 
-    // Lipschitz estimate ‖W 1‖ / ‖1‖ (a lower bound of λ_max; backtracking corrects it).
+    // Lipschitz estimate: the larger of ‖W 1‖ / ‖1‖ and W's largest diagonal entry, both lower
+    // bounds of λ_max (backtracking corrects them). `1` alone lies in W's null space when
+    // contacts are opposed (a disk pressed from both sides): the first step was then 1/1e-308.
     let ones = vec![1.0; n];
     let mut w_gamma = vec![0.0; n];
     p.w.apply(&ones, &mut w_gamma);
-    let mut lipschitz = (norm(&w_gamma) / norm(&ones)).max(f64::MIN_POSITIVE);
+    let largest_diagonal = p.w.diag_blocks().iter().fold(0.0, |m: f64, b| m.max(b[0]).max(b[3]));
+    let mut lipschitz = (norm(&w_gamma) / norm(&ones)).max(largest_diagonal).max(f64::MIN_POSITIVE);
     p.w.apply(&gamma, &mut w_gamma);
     monitor.w_products += 2;
 
@@ -58,7 +61,10 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut gamma: Vec<f64>) -> S
             monitor.w_products += 1;
             let d: Vec<f64> = next.iter().zip(&y).map(|(a, b)| a - b).collect();
             let bound = f_y + dot(&g, &d) + 0.5 * lipschitz * dot(&d, &d);
-            if objective(&next, &w_next, &p.q) <= bound + 1e-14 * bound.abs() || lipschitz > 1e300 {
+            // A step that overflows is refused (`inf <= inf` held, and impulses of 1e307 were taken).
+            let f_next = objective(&next, &w_next, &p.q);
+            let sufficient = f_next.is_finite() && bound.is_finite() && f_next <= bound + 1e-14 * bound.abs();
+            if sufficient || lipschitz > 1e300 {
                 break;
             }
             lipschitz *= 2.0;

@@ -511,7 +511,7 @@ pub fn solve(problem: &ContactProblem, kind: SolverKind, opts: &SolverOptions, r
         Some(r) if r.len() == n && r.iter().all(|x| x.is_finite()) => r.to_vec(),
         _ => vec![0.0; n],
     };
-    match kind {
+    let mut report = match kind {
         SolverKind::Nlgs => nlgs::solve(problem, opts, r0),
         SolverKind::Cpg => cpg::solve(problem, opts, r0, false),
         SolverKind::Pcpg => cpg::solve(problem, opts, r0, true),
@@ -521,5 +521,7 @@ pub fn solve(problem: &ContactProblem, kind: SolverKind, opts: &SolverOptions, r
         SolverKind::Newton => newton::solve(problem, opts, r0),
         SolverKind::NlgsNewton => truncated_newton::solve(problem, opts, r0),
         SolverKind::InteriorPoint => interior_point::solve(problem, opts, r0),
-    }
+    };
+    stopping::refuse_unbounded(problem, &mut report);
+    report
 }
