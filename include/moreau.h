@@ -215,6 +215,10 @@ typedef struct MoreauMeasures {
   double fabric_xy;
   // The contact directions' anisotropy 2 (λ₁ − λ₂), in [0, 2].
   double anisotropy;
+  // Mean distinct grains and walls each grain touches, rattlers excluded: a clump or polygon
+  // touching a neighbour at two points counts it once (equal to `coordination` for disks).
+  // Fields are added at the end of this struct, never between.
+  double neighbours;
 } MoreauMeasures;
 
 // One layer of the height profile (`moreau_simulation_copy_profile`): the moving grains whose

@@ -198,6 +198,10 @@ pub struct MoreauMeasures {
     pub fabric_xy: f64,
     /// The contact directions' anisotropy 2 (λ₁ − λ₂), in [0, 2].
     pub anisotropy: f64,
+    /// Mean distinct grains and walls each grain touches, rattlers excluded: a clump or polygon
+    /// touching a neighbour at two points counts it once (equal to `coordination` for disks).
+    /// Fields are added at the end of this struct, never between.
+    pub neighbours: f64,
 }
 
 /// One layer of the height profile (`moreau_simulation_copy_profile`): the moving grains whose
@@ -1294,6 +1298,7 @@ pub extern "C" fn moreau_simulation_measures(sim: *const MoreauSimulation, out: 
             fabric_yy: m.fabric_yy,
             fabric_xy: m.fabric_xy,
             anisotropy: m.anisotropy,
+            neighbours: m.neighbours,
         };
         copy_out(&[measures], out, 1, "out")
     })

@@ -218,6 +218,9 @@ fn a_c_program_restarts_a_scene_from_its_checkpoint_as_the_library_steps_it() {
     assert_eq!(field(straight, "anisotropy"), m.anisotropy, "{out}");
     assert!(m.anisotropy > 0.0, "a pile's contacts lean towards the vertical");
     assert_eq!(field(straight, "rattlers") as usize, m.rattlers, "{out}");
+    // A disk touches a neighbour once, a wall's sides perhaps twice (in a corner).
+    assert_eq!(field(straight, "neighbours"), m.neighbours, "{out}");
+    assert!(m.neighbours > 0.0 && m.neighbours <= m.coordination, "{out}");
     assert_eq!(field(&out, "body") as usize, sim.body_count(), "{out}");
     assert_eq!(field(&out, "of") as usize, sim.body_count() + 1, "{out}");
     // The command line goes on from the C program's checkpoint too.

@@ -29,8 +29,9 @@ static int steps(MoreauSimulation *sim, int n) {
 }
 
 static void print_measures(const char *what, const MoreauMeasures *m) {
-    printf("%s: packing_fraction %.17g coordination %.17g rattlers %zu stress_yy %.17g anisotropy %.17g\n", what,
-           m->packing_fraction, m->coordination, m->rattlers, m->stress_yy, m->anisotropy);
+    printf("%s: packing_fraction %.17g coordination %.17g rattlers %zu stress_yy %.17g anisotropy %.17g "
+           "neighbours %.17g\n",
+           what, m->packing_fraction, m->coordination, m->rattlers, m->stress_yy, m->anisotropy, m->neighbours);
 }
 
 int main(int argc, char **argv) {
