@@ -172,6 +172,9 @@ class SolveResult:
     iterations: int
     seconds: float
     w_products: int
+    #: Why the solve stopped, by name: converged, max_iter, stalled, diverged, breakdown or
+    #: unbounded (impulses that grew without stopping the contacts they load).
+    stop: str
     stop_reason: str
     solver: str
     device: str

@@ -168,6 +168,7 @@ fn solve<'py>(
     d.set_item("iterations", report.iterations)?;
     d.set_item("seconds", report.seconds)?;
     d.set_item("w_products", report.w_products)?;
+    d.set_item("stop", report.stop.name())?;
     d.set_item("stop_reason", report.stop_reason)?;
     d.set_item("solver", report.solver.name())?;
     d.set_item("device", device)?;

@@ -131,7 +131,9 @@ def test_a_problem_with_no_answer_comes_back_unconverged_and_says_why():
     for solver in ("nlgs", "interior-point"):
         result = moreau.solve(problem, solver=solver, tol=1e-4, max_iter=20000)
         assert not result.converged, (solver, result.error)
-        assert result.stop_reason.startswith("unbounded") and "may have no answer" in result.stop_reason
+        assert result.stop == "unbounded" and "may have no answer" in result.stop_reason
+    answered = moreau.solve(moreau.Problem(W, [-1.0, 0.0, 1.5, 0.0], [0.5, 0.5]), tol=1e-4)
+    assert answered.converged and answered.stop == "converged"
 
 
 def test_a_problem_written_from_python_reads_back_the_same(tmp_path):
