@@ -256,3 +256,65 @@ fn sweep_options_out_of_range_are_refused_from_the_command_line_and_the_scene() 
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A disk pressed from two opposite sides, its masses `1 / scale`: with `q_n2 = 1.5` the second
+/// side opens (`r = (1, 0)` answers it), with `q_n2 = −1` nothing answers it.
+fn opposed_pair_file(dir: &std::path::Path, name: &str, q_n2: f64, scale: f64) -> std::path::PathBuf {
+    let (s, m) = (scale, -scale);
+    let text =
+        format!("2\n2\n0\n4\n4\n4 4\n{s} 0 {m} 0\n0 {s} 0 {m}\n{m} 0 {s} 0\n0 {m} 0 {s}\n-1 0 {q_n2} 0\n0.5 0.5\n");
+    let file = dir.join(name);
+    std::fs::write(&file, text).unwrap();
+    file
+}
+
+/// `moreau solve` says how far the worst contact is from stopping in velocity units, which the
+/// natural-map error hides when heavy grains' impulses set its scale; and a problem with no
+/// answer is a warning, and an error under --strict.
+#[test]
+fn solve_reports_the_worst_contact_in_velocity_units_and_refuses_an_unbounded_answer() {
+    let dir = std::env::temp_dir().join(format!("moreau-cli-velocity-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let heavy = opposed_pair_file(&dir, "heavy.dat", 1.5, 1e-6);
+    let json = dir.join("heavy.json");
+    let solve = |file: &std::path::Path, extra: &[&str]| {
+        let out = moreau()
+            .arg("solve")
+            .arg(file)
+            .args(["--solver", "jacobi", "--device", "cpu", "--tol", "1e-4", "--out"])
+            .arg(&json)
+            .args(extra)
+            .output()
+            .unwrap();
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap_or_default())
+            .unwrap_or(serde_json::Value::Null);
+        (out, v)
+    };
+    let (out, v) = solve(&heavy, &[]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && v["converged"] == true, "{stdout}");
+    // Projected Jacobi stops with contact 0 still closing: the natural map's scale is ‖r‖ ≈ 1e6.
+    let (natural, velocity) = (v["error"].as_f64().unwrap(), v["velocity_error"].as_f64().unwrap());
+    let p = moreau::io::siconos::read_fc2d(&heavy).unwrap();
+    let r: Vec<f64> = v["r"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    let u = p.velocity(&r);
+    let diag = p.w.diag_blocks();
+    assert_eq!(velocity, moreau::problem::residual::velocity_error(&diag, &p.q, &p.mu, &r, &u));
+    assert!(natural <= 1e-4 && velocity > 1e3 * natural, "natural {natural:e}, velocity {velocity:e}");
+    assert!(stdout.contains(&format!("worst contact: residual {velocity:.3e}")), "{stdout}");
+    // Held to tol contact by contact, the same solver goes on until the contact stops.
+    let (out, v) = solve(&heavy, &["--criterion", "velocity", "--max-iter", "100000"]);
+    assert!(out.status.success() && v["converged"] == true && v["velocity_error"].as_f64().unwrap() <= 1e-4);
+    assert!(!String::from_utf8_lossy(&out.stdout).contains("worst contact"), "the judged error says it");
+
+    let none = opposed_pair_file(&dir, "none.dat", -1.0, 1.0);
+    for strict in [false, true] {
+        let flag: &[&str] = if strict { &["--strict"] } else { &[] };
+        let out =
+            moreau().arg("solve").arg(&none).args(["--solver", "nlgs", "--tol", "1e-4"]).args(flag).output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.success(), !strict, "{stderr}");
+        assert!(stderr.contains("did not converge: unbounded") && stderr.contains("may have no answer"), "{stderr}");
+        assert!(String::from_utf8_lossy(&out.stdout).contains("NOT CONVERGED"));
+    }
+}

@@ -6,7 +6,7 @@ mod run;
 mod sweep;
 
 use crate::backend::Backend;
-use crate::io::report::{summary_line, SolveOutput};
+use crate::io::report::{answer_velocity_error, summary_line, SolveOutput};
 use crate::io::siconos::{read_fc2d, write_fc2d, Storage};
 use crate::problem::generate;
 use crate::solvers::{self, LatinK, NewtonLinear, Ordering, SolverKind, SolverOptions, StopCriterion};
@@ -442,12 +442,20 @@ fn solve_command(a: SolveArgs) -> Result<()> {
     for note in &report.notes {
         println!("  {note}");
     }
+    // The natural map's scale is ‖r‖ where impulses outweigh velocities (heavy grains): say how
+    // far the worst contact is from stopping, in the free velocities' units.
+    let velocity_error = answer_velocity_error(&problem, &report);
+    if !opts.criterion.is_velocity_test() {
+        println!(
+            "  worst contact: residual {velocity_error:.3e} of the largest free velocity (the velocity test's measure; --criterion velocity holds every contact to tol)"
+        );
+    }
     if !report.converged {
         eprintln!("warning: {} did not converge: {}", report.solver, report.stop_reason);
     }
     if let Some(out) = &a.out {
         let name = a.file.display().to_string();
-        let mut output = SolveOutput::new(&name, device, &opts, &report);
+        let mut output = SolveOutput::new(&name, device, &opts, &report, velocity_error);
         output.adapter = adapter.as_deref();
         let json = serde_json::to_string(&output)?;
         std::fs::write(out, json).with_context(|| format!("writing {}", out.display()))?;

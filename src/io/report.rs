@@ -1,5 +1,7 @@
 //! The JSON written by `moreau solve --out`.
 
+use crate::problem::residual::velocity_error_rolling;
+use crate::problem::ContactProblem;
 use crate::solvers::{HistoryPoint, SolvePart, SolveReport, SolverKind, SolverOptions, StopCriterion};
 use serde::Serialize;
 
@@ -35,6 +37,10 @@ pub struct SolveOutput<'a> {
     pub w_products: usize,
     /// Why the solve stopped.
     pub stop_reason: &'a str,
+    /// The answer's worst contact residual in velocity units over the largest free velocity
+    /// (the velocity test's measure, whatever the criterion): where heavy grains' impulses
+    /// dominate the natural map's scale, what the natural-map error does not show.
+    pub velocity_error: f64,
     /// What the solver chose on its own (LATIN's search direction, Newton's refused directions).
     pub notes: &'a [String],
     /// The error at the checks.
@@ -51,8 +57,15 @@ pub struct SolveOutput<'a> {
 }
 
 impl<'a> SolveOutput<'a> {
-    /// The output of `rep`, a solve of `problem` on `device` with `opts`.
-    pub fn new(problem: &'a str, device: &'a str, opts: &SolverOptions, rep: &'a SolveReport) -> Self {
+    /// The output of `rep`, a solve of the problem named `problem` on `device` with `opts`;
+    /// `velocity_error` is the answer's ([`answer_velocity_error`]).
+    pub fn new(
+        problem: &'a str,
+        device: &'a str,
+        opts: &SolverOptions,
+        rep: &'a SolveReport,
+        velocity_error: f64,
+    ) -> Self {
         Self {
             problem,
             solver: rep.solver,
@@ -68,6 +81,7 @@ impl<'a> SolveOutput<'a> {
             seconds: rep.seconds,
             w_products: rep.w_products,
             stop_reason: &rep.stop_reason,
+            velocity_error,
             notes: &rep.notes,
             history: &rep.history,
             parts: &rep.parts,
@@ -76,6 +90,13 @@ impl<'a> SolveOutput<'a> {
             u: &rep.u,
         }
     }
+}
+
+/// The velocity test's measure of `rep`'s answer to `problem`: its worst contact's residual in
+/// velocity units over the largest free velocity, rolling rows included.
+pub fn answer_velocity_error(problem: &ContactProblem, rep: &SolveReport) -> f64 {
+    let p = problem;
+    velocity_error_rolling(&p.w.diag_blocks(), &p.q, &p.mu, &p.rolling, &p.gap_rate, &rep.r, &rep.u)
 }
 
 /// The one-line summary printed after a solve: the error the stopping test judged, and the
