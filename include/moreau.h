@@ -10,6 +10,12 @@
 #include <stdint.h>
 #include <stdlib.h>
 
+// The version of this header's types (structs and enums): raised whenever one changes, a field
+// or a value added, so that a host can compare the header it was compiled against
+// (`MOREAU_ABI_VERSION`) with the library it runs with (`moreau_abi_version()`). Fields are
+// added at the end of a struct, values at the end of an enum.
+#define MOREAU_ABI_VERSION 1
+
 // What a call did.
 typedef enum MoreauStatus {
   MOREAU_STATUS_OK = 0,
@@ -245,6 +251,9 @@ extern "C" {
 // The message of the last failed call on this thread ("" after a call that succeeded). Valid
 // until the next moreau call on this thread.
 const char *moreau_last_error(void);
+
+// The `MOREAU_ABI_VERSION` this library was built with.
+uint32_t moreau_abi_version(void);
 
 // moreau's version, e.g. "0.1.0".
 const char *moreau_version(void);

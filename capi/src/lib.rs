@@ -369,6 +369,18 @@ pub extern "C" fn moreau_last_error() -> *const c_char {
     LAST_ERROR.with(|e| e.borrow().as_ptr())
 }
 
+/// The version of this header's types (structs and enums): raised whenever one changes, a field
+/// or a value added, so that a host can compare the header it was compiled against
+/// (`MOREAU_ABI_VERSION`) with the library it runs with (`moreau_abi_version()`). Fields are
+/// added at the end of a struct, values at the end of an enum.
+pub const MOREAU_ABI_VERSION: u32 = 1;
+
+/// The `MOREAU_ABI_VERSION` this library was built with.
+#[no_mangle]
+pub extern "C" fn moreau_abi_version() -> u32 {
+    MOREAU_ABI_VERSION
+}
+
 /// moreau's version, e.g. "0.1.0".
 #[no_mangle]
 pub extern "C" fn moreau_version() -> *const c_char {

@@ -72,6 +72,54 @@ fn the_committed_header_is_what_the_library_exports() {
     }
 }
 
+/// The header's types as of `MOREAU_ABI_VERSION`: its version and a hash of the structs' and
+/// enums' definitions, comments left out. A change to a type changes the hash.
+const RECORDED_ABI: (u32, u64) = (1, 0x71a8_a4f9_2954_9864);
+
+/// The struct and enum definitions of `header`, comment lines and blank lines left out.
+fn type_definitions(header: &str) -> String {
+    let mut inside = false;
+    let mut kept = String::new();
+    for line in header.lines().map(str::trim) {
+        inside |= line.starts_with("typedef struct") && line.ends_with('{') || line.starts_with("typedef enum");
+        if inside && !line.is_empty() && !line.starts_with("//") {
+            kept.push_str(line);
+            kept.push('\n');
+        }
+        inside &= !line.starts_with('}');
+    }
+    kept
+}
+
+/// FNV-1a, 64 bits: a hash that does not change between Rust releases.
+fn fnv1a(text: &str) -> u64 {
+    text.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
+}
+
+/// A struct or enum of the header that changes raises `MOREAU_ABI_VERSION`: a host compiled
+/// against another header can then tell (`moreau_abi_version()`: `solve_file.c` refuses to run
+/// with a library of another version).
+#[test]
+fn the_abi_version_rises_when_a_type_of_the_header_changes() {
+    let header = generated_header();
+    let types = type_definitions(&header);
+    assert!(types.contains("typedef struct MoreauMeasures {") && types.contains("MOREAU_STOP_UNBOUNDED"), "{types}");
+    let version: u32 = header
+        .lines()
+        .find_map(|l| l.strip_prefix("#define MOREAU_ABI_VERSION "))
+        .and_then(|v| v.trim().parse().ok())
+        .expect("the header defines MOREAU_ABI_VERSION");
+    let hash = fnv1a(&types);
+    assert!(
+        RECORDED_ABI == (version, hash),
+        "the header's types changed (hash {hash:#018x}, recorded {:#018x} for version {}): raise \
+         MOREAU_ABI_VERSION in capi/src/lib.rs and record ({}, {hash:#018x}) in RECORDED_ABI",
+        RECORDED_ABI.1,
+        RECORDED_ABI.0,
+        RECORDED_ABI.0 + 1,
+    );
+}
+
 /// Compiles `examples/c/<name>.c` against the header and the library; returns the program, one
 /// file per call: tests run in parallel, and a program rewritten while another test runs it
 /// fails to start.

@@ -19,6 +19,11 @@ int main(int argc, char **argv) {
         fprintf(stderr, "usage: %s PROBLEM.dat [TOL [SOLVER [ANDERSON [DEVICE [OMEGA]]]]]\n", argv[0]);
         return 2;
     }
+    if (moreau_abi_version() != MOREAU_ABI_VERSION) {
+        fprintf(stderr, "error: compiled against moreau.h of ABI %d, running with a library of ABI %u\n",
+                MOREAU_ABI_VERSION, moreau_abi_version());
+        return 1;
+    }
     MoreauProblem *problem = NULL;
     if (moreau_problem_read_fc2d(argv[1], &problem) != MOREAU_STATUS_OK) {
         return report_error("reading the problem");
