@@ -14,7 +14,7 @@
 // or a value added, so that a host can compare the header it was compiled against
 // (`MOREAU_ABI_VERSION`) with the library it runs with (`moreau_abi_version()`). Fields are
 // added at the end of a struct, values at the end of an enum.
-#define MOREAU_ABI_VERSION 1
+#define MOREAU_ABI_VERSION 2
 
 // What a call did.
 typedef enum MoreauStatus {
@@ -107,6 +107,12 @@ typedef struct MoreauSolveSummary {
   size_t gpu_iterations;
   // The measure the criterion judged against `tol` (`error` itself under `natural`).
   double judged_error;
+  // Why the solve stopped.
+  enum MoreauStop stop;
+  // The answer's worst contact residual in velocity units over the largest free velocity (the
+  // velocity test's measure, whatever the criterion): what the natural-map error hides where
+  // heavy grains' impulses set its scale.
+  double velocity_error;
 } MoreauSolveSummary;
 
 // The contact law of a pair of materials (each coefficient finite and >= 0, restitution <= 1);

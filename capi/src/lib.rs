@@ -13,6 +13,7 @@ use std::path::Path;
 
 use moreau::backend::{solve_by_name, DeviceChoice};
 use moreau::detection::Antagonist;
+use moreau::io::report::answer_velocity_error;
 use moreau::io::siconos::read_fc2d;
 use moreau::problem::{BlockSparse, ContactProblem, Delassus};
 use moreau::solvers::{Ordering, StopCriterion, StopReason};
@@ -45,6 +46,7 @@ pub struct MoreauProblem(ContactProblem);
 /// A solve's result.
 pub struct MoreauSolution {
     report: SolveReport,
+    velocity_error: f64,
     stop_reason: CString,
     device: CString,
 }
@@ -105,6 +107,12 @@ pub struct MoreauSolveSummary {
     pub gpu_iterations: usize,
     /// The measure the criterion judged against `tol` (`error` itself under `natural`).
     pub judged_error: f64,
+    /// Why the solve stopped.
+    pub stop: MoreauStop,
+    /// The answer's worst contact residual in velocity units over the largest free velocity (the
+    /// velocity test's measure, whatever the criterion): what the natural-map error hides where
+    /// heavy grains' impulses set its scale.
+    pub velocity_error: f64,
 }
 
 /// What one step did.
@@ -373,7 +381,7 @@ pub extern "C" fn moreau_last_error() -> *const c_char {
 /// or a value added, so that a host can compare the header it was compiled against
 /// (`MOREAU_ABI_VERSION`) with the library it runs with (`moreau_abi_version()`). Fields are
 /// added at the end of a struct, values at the end of an enum.
-pub const MOREAU_ABI_VERSION: u32 = 1;
+pub const MOREAU_ABI_VERSION: u32 = 2;
 
 /// The `MOREAU_ABI_VERSION` this library was built with.
 #[no_mangle]
@@ -510,7 +518,8 @@ pub extern "C" fn moreau_solve(
             solve_by_name(problem, solver, device, o.threads, &opts, r0).or_else(|e| fail(MoreauStatus::Solve, e))?;
         let stop_reason = CString::new(report.stop_reason.replace('\0', " ")).unwrap_or_default();
         let device = CString::new(device).unwrap_or_default();
-        give(out, MoreauSolution { report, stop_reason, device })
+        let velocity_error = answer_velocity_error(problem, &report);
+        give(out, MoreauSolution { report, velocity_error, stop_reason, device })
     })
 }
 
@@ -521,7 +530,8 @@ pub extern "C" fn moreau_solution_summary(
     out: *mut MoreauSolveSummary,
 ) -> MoreauStatus {
     guard(|| {
-        let r = &object(solution, "solution")?.report;
+        let solution = object(solution, "solution")?;
+        let r = &solution.report;
         let summary = MoreauSolveSummary {
             converged: r.converged,
             iterations: r.iterations,
@@ -530,6 +540,8 @@ pub extern "C" fn moreau_solution_summary(
             contacts: r.r.len() / 2,
             gpu_iterations: r.gpu_iterations(),
             judged_error: r.judged_error,
+            stop: r.stop.into(),
+            velocity_error: solution.velocity_error,
         };
         copy_out(&[summary], out, 1, "out")
     })

@@ -58,8 +58,10 @@ int main(int argc, char **argv) {
             normal_sum += r[2 * k];
         }
     }
-    printf("contacts %zu converged %d iterations %zu gpu_iterations %zu error %.3e sum_rn %.9e\n", n,
-           summary.converged, summary.iterations, summary.gpu_iterations, summary.error, normal_sum);
+    printf("contacts %zu converged %d iterations %zu gpu_iterations %zu error %.3e sum_rn %.9e "
+           "velocity_error %.17g stop_code %d\n",
+           n, summary.converged, summary.iterations, summary.gpu_iterations, summary.error, normal_sum,
+           summary.velocity_error, (int)summary.stop);
     printf("stop: %s\ndevice: %s\n", moreau_solution_stop_reason(solution), moreau_solution_device(solution));
     free(r);
     moreau_solution_free(solution);

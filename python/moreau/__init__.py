@@ -169,6 +169,10 @@ class SolveResult:
     converged: bool
     error: float
     judged_error: float
+    #: The answer's worst contact residual in velocity units over the largest free velocity (the
+    #: velocity test's measure, whatever the criterion): what ``error`` hides where heavy grains'
+    #: impulses set the natural map's scale.
+    velocity_error: float
     iterations: int
     seconds: float
     w_products: int

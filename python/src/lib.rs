@@ -165,6 +165,7 @@ fn solve<'py>(
     d.set_item("converged", report.converged)?;
     d.set_item("error", report.error)?;
     d.set_item("judged_error", report.judged_error)?;
+    d.set_item("velocity_error", moreau::io::report::answer_velocity_error(problem, &report))?;
     d.set_item("iterations", report.iterations)?;
     d.set_item("seconds", report.seconds)?;
     d.set_item("w_products", report.w_products)?;

@@ -134,6 +134,13 @@ def test_a_problem_with_no_answer_comes_back_unconverged_and_says_why():
         assert result.stop == "unbounded" and "may have no answer" in result.stop_reason
     answered = moreau.solve(moreau.Problem(W, [-1.0, 0.0, 1.5, 0.0], [0.5, 0.5]), tol=1e-4)
     assert answered.converged and answered.stop == "converged"
+    # The same disk a million times heavier, by projected Jacobi: the natural-map error passes
+    # while the pressed contact still closes at a third of the largest free velocity.
+    heavy = moreau.solve(moreau.Problem(1e-6 * W, [-1.0, 0.0, 1.5, 0.0], [0.5, 0.5]), solver="jacobi", tol=1e-4)
+    assert heavy.converged and heavy.error <= 1e-4 and heavy.velocity_error > 0.1
+    held = moreau.solve(moreau.Problem(1e-6 * W, [-1.0, 0.0, 1.5, 0.0], [0.5, 0.5]), solver="jacobi", tol=1e-4,
+                        criterion="velocity", max_iter=100000)
+    assert held.converged and held.velocity_error == held.judged_error <= 1e-4
 
 
 def test_a_problem_written_from_python_reads_back_the_same(tmp_path):
