@@ -87,7 +87,7 @@ fn auto_never_takes_the_software_adapter_nor_a_tolerance_below_the_f32_floor() {
     assert!(e.to_string().contains("no latin solver"), "{e}");
     // A scene too small to gain from a GPU stays on the CPU under `auto`, and says so; a large
     // one is decided as any solve is; `gpu` asked for is never turned down for size.
-    let scene = |choice, bodies| Backend::choose_for_scene(choice, SolverKind::Nlgs, &opts, false, bodies).unwrap();
+    let scene = |choice, bodies| Backend::choose_for_scene(choice, SolverKind::Nlgs, &opts, None, bodies).unwrap();
     let small = scene(DeviceChoice::Auto, 400);
     assert!(!small.is_gpu() && small.describe().contains("400 bodies"), "{}", small.describe());
     let large = scene(DeviceChoice::Auto, 10_000);
@@ -97,7 +97,7 @@ fn auto_never_takes_the_software_adapter_nor_a_tolerance_below_the_f32_floor() {
         assert!(scene(DeviceChoice::Gpu, 400).is_gpu());
     }
     // What the GPU cannot do at all is said first.
-    let latin = Backend::choose_for_scene(DeviceChoice::Auto, SolverKind::Latin, &opts, false, 400).unwrap();
+    let latin = Backend::choose_for_scene(DeviceChoice::Auto, SolverKind::Latin, &opts, None, 400).unwrap();
     assert!(latin.describe().contains("latin"), "{}", latin.describe());
 }
 

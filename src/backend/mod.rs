@@ -160,6 +160,18 @@ impl Default for Backend {
     }
 }
 
+/// Why the steps of `world` are solved on the CPU only, if they are: rolling unknowns, or a body
+/// that holds its velocity along one axis.
+pub fn cpu_only(world: &crate::world::World) -> Option<&'static str> {
+    if world.effects.rolling_resistance {
+        Some(ROLLING_ON_CPU)
+    } else if world.bodies.holds_an_axis() {
+        Some(crate::gpu::HELD_AXIS_ON_CPU)
+    } else {
+        None
+    }
+}
+
 /// Why a problem with rolling unknowns is solved on the CPU.
 pub const ROLLING_ON_CPU: &str =
     "rolling resistance is solved on the CPU only: the GPU kernels know 2 unknowns per contact";
@@ -257,7 +269,7 @@ impl Backend {
     /// adapter, else the software one) or an error naming what the GPU path lacks; `auto`, a
     /// hardware GPU that can do the solve to a tolerance f32 reaches, else the CPU.
     pub fn choose(choice: DeviceChoice, kind: SolverKind, opts: &SolverOptions) -> Result<Self, BackendError> {
-        Self::choose_for(choice, kind, opts, false)
+        Self::choose_for(choice, kind, opts, None)
     }
 
     /// [`Self::choose_for`] for the steps of a scene of `bodies` bodies: `auto` keeps a scene of
@@ -267,21 +279,22 @@ impl Backend {
         choice: DeviceChoice,
         kind: SolverKind,
         opts: &SolverOptions,
-        rolling: bool,
+        cpu_only: Option<&'static str>,
         bodies: usize,
     ) -> Result<Self, BackendError> {
-        Self::choose_with(choice, kind, opts, rolling, Some(bodies))
+        Self::choose_with(choice, kind, opts, cpu_only, Some(bodies))
     }
 
-    /// [`Self::choose`] for problems that may carry rolling unknowns (`rolling`), which only the
-    /// CPU solves: `auto` then takes the CPU and says why, `gpu` is refused.
+    /// [`Self::choose`] for problems only the CPU solves when `cpu_only` says why (rolling
+    /// unknowns, a body held along one axis: [`cpu_only`]): `auto` then takes the CPU and says
+    /// why, `gpu` is refused.
     pub fn choose_for(
         choice: DeviceChoice,
         kind: SolverKind,
         opts: &SolverOptions,
-        rolling: bool,
+        cpu_only: Option<&'static str>,
     ) -> Result<Self, BackendError> {
-        Self::choose_with(choice, kind, opts, rolling, None)
+        Self::choose_with(choice, kind, opts, cpu_only, None)
     }
 
     /// The one device choice: [`Self::choose_for`], and for a scene (`bodies`) the size rule of
@@ -290,12 +303,12 @@ impl Backend {
         choice: DeviceChoice,
         kind: SolverKind,
         opts: &SolverOptions,
-        rolling: bool,
+        cpu_only: Option<&'static str>,
         bodies: Option<usize>,
     ) -> Result<Self, BackendError> {
-        match choice {
-            DeviceChoice::Auto if rolling => return Ok(Self::cpu_because(ROLLING_ON_CPU)),
-            DeviceChoice::Gpu if rolling => return Err(BackendError::Refused(ROLLING_ON_CPU.into())),
+        match (choice, cpu_only) {
+            (DeviceChoice::Auto, Some(why)) => return Ok(Self::cpu_because(why)),
+            (DeviceChoice::Gpu, Some(why)) => return Err(BackendError::Refused(why.into())),
             _ => {}
         }
         let cpu = |reason: String| Ok(Self::on(Device::Cpu, reason));

@@ -381,16 +381,16 @@ pub(crate) fn choose_backend(choice: DeviceChoice, solver: SolverKind, opts: &So
     Ok(backend)
 }
 
-/// [`choose_backend`] for the steps of a scene of `bodies` bodies whose problems may carry
-/// rolling unknowns (CPU only).
+/// [`choose_backend`] for the steps of a scene of `bodies` bodies, which only the CPU solves
+/// when `cpu_only` says why (`backend::cpu_only`).
 pub(crate) fn choose_backend_for_scene(
     choice: DeviceChoice,
     solver: SolverKind,
     opts: &SolverOptions,
-    rolling: bool,
+    cpu_only: Option<&'static str>,
     bodies: usize,
 ) -> Result<Backend> {
-    let backend = Backend::choose_for_scene(choice, solver, opts, rolling, bodies)?;
+    let backend = Backend::choose_for_scene(choice, solver, opts, cpu_only, bodies)?;
     eprintln!("device: {}", backend.describe());
     Ok(backend)
 }

@@ -127,9 +127,9 @@ pub fn run_command(a: RunArgs) -> Result<()> {
     set_threads(a.threads)?;
     let (vtk_every, picture_step) = output_steps(&a, &scene, start, last)?;
     let first = start + 1;
-    let rolling = scene.world.effects.rolling_resistance;
+    let cpu_only = crate::backend::cpu_only(&scene.world);
     let bodies = scene.world.bodies.len();
-    let backend = choose_backend_for_scene(a.device, scene.settings.solver, &scene.settings.options, rolling, bodies)?;
+    let backend = choose_backend_for_scene(a.device, scene.settings.solver, &scene.settings.options, cpu_only, bodies)?;
     let default_dir = match start {
         0 => scene.name.clone(),
         k => format!("{}_from_{k}", scene.name),

@@ -42,6 +42,22 @@ pub struct DetectedContact {
     pub image: DVec2,
 }
 
+/// Whether the bodies of `c` can move relative to each other along its normal: `n·M⁻¹n` summed
+/// over them, turning included, is not zero.
+fn moves_along_normal(bodies: &Bodies, config: &Configuration, c: &DetectedContact) -> bool {
+    let n = c.normal;
+    let mobility = |k: usize, lever: DVec2| {
+        let [mx, my] = bodies.axis_inv_mass(k);
+        let turning = if bodies.has_rotation() { bodies.inv_inertia[k] * lever.perp_dot(n).powi(2) } else { 0.0 };
+        mx * n.x * n.x + my * n.y * n.y + turning
+    };
+    let mut total = mobility(c.i, c.point - config.position[c.i]);
+    if let Antagonist::Body(j) = c.other {
+        total += mobility(j, c.point - config.position[j] - c.image);
+    }
+    total > 0.0
+}
+
 impl DetectedContact {
     /// Identity used to carry impulses from one step to the next.
     pub fn key(&self) -> (usize, Antagonist, u64) {
@@ -218,6 +234,11 @@ impl Detector {
                 narrow_phase::body_body(bodies, config, (i, j, DVec2::new(shift, 0.0)), pair_alert, &mut out);
             }
             out.sort_by_key(DetectedContact::key);
+        }
+        if !bodies.held.is_empty() {
+            // Bodies held along an axis can meet where neither moves along the normal (two
+            // plates sliding in step): no impulse acts there, as between two fixed bodies.
+            out.retain(|c| moves_along_normal(bodies, config, c));
         }
         out
     }

@@ -16,11 +16,13 @@ use crate::parallel::{first_failure, map_indices, parallel, CHUNK};
 /// Contact ranges `(first, end)` by colour: blocks of one colour share no moving body.
 pub type BlockColours = Vec<Vec<(usize, usize)>>;
 
-/// A rigid body's inverse mass and inverse inertia. A static body (a wall) has both zero.
+/// A rigid body's inverse mass along x and y and inverse inertia. A static body (a wall) has all
+/// zero; a body that holds its velocity along one axis (the plate of a shear cell, driven along x
+/// and pressed along y) has a zero inverse mass along it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Body {
-    /// 1/m (0: fixed).
-    pub inv_mass: f64,
+    /// 1/m along x and along y (0: fixed, or held along that axis).
+    pub inv_mass: [f64; 2],
     /// 1/I (0: fixed or not turning).
     pub inv_inertia: f64,
 }
@@ -29,13 +31,13 @@ impl Body {
     /// A moving body of this mass and inertia (inertia 0 or infinite: it does not turn).
     pub fn dynamic(mass: f64, inertia: f64) -> Self {
         Self {
-            inv_mass: 1.0 / mass,
+            inv_mass: [1.0 / mass; 2],
             inv_inertia: if inertia > 0.0 && inertia.is_finite() { 1.0 / inertia } else { 0.0 },
         }
     }
     /// A fixed body (a wall, a support).
     pub fn fixed() -> Self {
-        Self { inv_mass: 0.0, inv_inertia: 0.0 }
+        Self { inv_mass: [0.0; 2], inv_inertia: 0.0 }
     }
 }
 
@@ -355,8 +357,8 @@ impl MatrixFree {
         dofs: Dofs,
     ) -> Result<Self, String> {
         for (k, b) in bodies.iter().enumerate() {
-            if !(b.inv_mass.is_finite() && b.inv_mass >= 0.0) {
-                return Err(format!("body {k}: inverse mass {} must be finite and >= 0 (mass > 0)", b.inv_mass));
+            if !b.inv_mass.iter().all(|m| m.is_finite() && *m >= 0.0) {
+                return Err(format!("body {k}: inverse mass {:?} must be finite and >= 0 (mass > 0)", b.inv_mass));
             }
             if !(b.inv_inertia.is_finite() && b.inv_inertia >= 0.0) {
                 return Err(format!("body {k}: inverse inertia {} must be finite and >= 0", b.inv_inertia));
@@ -641,8 +643,8 @@ impl MatrixFree {
                 [rn * n[0], rn * n[1]]
             };
             let sign = if j_side { -1.0 } else { 1.0 };
-            v[0] += sign * (b.inv_mass * p[0]);
-            v[1] += sign * (b.inv_mass * p[1]);
+            v[0] += sign * (b.inv_mass[0] * p[0]);
+            v[1] += sign * (b.inv_mass[1] * p[1]);
             if self.dofs.rotation {
                 let g = &self.levers[a];
                 let torque = match (j_side, self.dofs.friction) {
@@ -689,8 +691,8 @@ impl MatrixFree {
         };
         let b = self.bodies[c.i];
         if b != Body::fixed() {
-            v.add(s * c.i, b.inv_mass * p[0]);
-            v.add(s * c.i + 1, b.inv_mass * p[1]);
+            v.add(s * c.i, b.inv_mass[0] * p[0]);
+            v.add(s * c.i + 1, b.inv_mass[1] * p[1]);
             if self.dofs.rotation {
                 let torque_i = if self.dofs.friction { rn * g[0] + rt * g[1] } else { rn * g[0] };
                 v.add(s * c.i + 2, b.inv_inertia * torque_i);
@@ -702,8 +704,8 @@ impl MatrixFree {
                 let torque_j = if self.dofs.friction { rn * g[2] + rt * g[3] } else { rn * g[2] };
                 v.add(s * c.j + 2, -(b.inv_inertia * torque_j));
             }
-            v.add(s * c.j, -(b.inv_mass * p[0]));
-            v.add(s * c.j + 1, -(b.inv_mass * p[1]));
+            v.add(s * c.j, -(b.inv_mass[0] * p[0]));
+            v.add(s * c.j + 1, -(b.inv_mass[1] * p[1]));
         }
     }
 
@@ -813,10 +815,18 @@ impl MatrixFree {
         let c = &self.rows[a];
         let (gi, gj) = self.lever_pair(a);
         let mut w = [0.0; 4];
+        // n·M⁻¹n and the like: `1/m` itself (n and t are unit vectors) unless the body holds
+        // its velocity along an axis.
+        let [nx, ny] = c.n;
         let mut add = |b: Body, g: [f64; 2]| {
-            w[0] += b.inv_mass + b.inv_inertia * g[0] * g[0];
-            w[1] += b.inv_inertia * g[0] * g[1];
-            w[3] += b.inv_mass + b.inv_inertia * g[1] * g[1];
+            let [mx, my] = b.inv_mass;
+            let (nn, nt, tt) = match mx == my {
+                true => (mx, 0.0, mx),
+                false => (mx * nx * nx + my * ny * ny, (my - mx) * nx * ny, mx * ny * ny + my * nx * nx),
+            };
+            w[0] += nn + b.inv_inertia * g[0] * g[0];
+            w[1] += nt + b.inv_inertia * g[0] * g[1];
+            w[3] += tt + b.inv_inertia * g[1] * g[1];
         };
         add(self.bodies[c.i], gi);
         if c.j != NO_BODY {
@@ -844,20 +854,25 @@ impl MatrixFree {
         let mut triplets: Vec<(usize, usize, Mat2)> = Vec::new();
         for (k, list) in incident.iter().enumerate() {
             let b = self.bodies[k];
-            if b.inv_mass == 0.0 && b.inv_inertia == 0.0 {
+            if b == Body::fixed() {
                 continue;
             }
             for &(a, sa, ga) in list {
                 for &(c, sc, gc) in list {
                     let (na, nc) = (self.rows[a].n, self.rows[c].n);
                     let (ta, tc) = ([-na[1], na[0]], [-nc[1], nc[0]]);
-                    let dot = |x: [f64; 2], y: [f64; 2]| x[0] * y[0] + x[1] * y[1];
+                    // x·M⁻¹y over the translations (`1/m x·y` unless held along an axis).
+                    let [mx, my] = b.inv_mass;
+                    let dot = |x: [f64; 2], y: [f64; 2]| match mx == my {
+                        true => mx * (x[0] * y[0] + x[1] * y[1]),
+                        false => mx * x[0] * y[0] + my * x[1] * y[1],
+                    };
                     let s = sa * sc;
                     let blk = [
-                        s * (b.inv_mass * dot(na, nc) + b.inv_inertia * ga[0] * gc[0]),
-                        s * (b.inv_mass * dot(na, tc) + b.inv_inertia * ga[0] * gc[1]),
-                        s * (b.inv_mass * dot(ta, nc) + b.inv_inertia * ga[1] * gc[0]),
-                        s * (b.inv_mass * dot(ta, tc) + b.inv_inertia * ga[1] * gc[1]),
+                        s * (dot(na, nc) + b.inv_inertia * ga[0] * gc[0]),
+                        s * (dot(na, tc) + b.inv_inertia * ga[0] * gc[1]),
+                        s * (dot(ta, nc) + b.inv_inertia * ga[1] * gc[0]),
+                        s * (dot(ta, tc) + b.inv_inertia * ga[1] * gc[1]),
                     ];
                     let blk = if self.dofs.friction { blk } else { [blk[0], 0.0, 0.0, 0.0] };
                     triplets.push((a, c, blk));
@@ -887,6 +902,66 @@ pub(crate) fn disks_in_a_row() -> MatrixFree {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Bodies held along x or y (a zero inverse mass along that axis) enter `W = B M⁻¹ Bᵀ` as
+    /// such: the product, the diagonal blocks and the assembled matrix agree with `B M⁻¹ Bᵀ`
+    /// formed densely, for contacts at every angle.
+    #[test]
+    fn bodies_held_along_one_axis_give_w_as_b_m_inverse_b_transpose() {
+        let bodies = vec![
+            Body::dynamic(2.0, 0.3),
+            Body { inv_mass: [0.0, 0.5], inv_inertia: 4.0 },
+            Body { inv_mass: [0.25, 0.0], inv_inertia: 0.0 },
+        ];
+        let contacts: Vec<Contact> = (0..7)
+            .map(|a| {
+                let angle = 0.3 + a as f64 * 0.9;
+                let normal = [angle.cos(), angle.sin()];
+                let (i, j) =
+                    [(1, Some(0)), (2, Some(1)), (1, None), (2, None), (0, Some(2)), (1, Some(2)), (0, None)][a];
+                Contact { i, j, normal, lever_i: [0.1 * a as f64, -0.2], lever_j: [-0.3, 0.05 * a as f64] }
+            })
+            .collect();
+        let op = MatrixFree::new(bodies.clone(), &contacts).unwrap();
+        let (nc, nb) = (contacts.len(), bodies.len());
+        // B: 2 rows a contact (n, t), 3 columns a body (x, y, θ).
+        let mut b = vec![vec![0.0; 3 * nb]; 2 * nc];
+        for (a, c) in contacts.iter().enumerate() {
+            let [nx, ny] = c.normal;
+            let (n, t) = ([nx, ny], [-ny, nx]);
+            for (k, lever, sign) in [(Some(c.i), c.lever_i, 1.0), (c.j, c.lever_j, -1.0)] {
+                let Some(k) = k else { continue };
+                for (row, dir) in [(2 * a, n), (2 * a + 1, t)] {
+                    b[row][3 * k] += sign * dir[0];
+                    b[row][3 * k + 1] += sign * dir[1];
+                    b[row][3 * k + 2] += sign * (lever[0] * dir[1] - lever[1] * dir[0]);
+                }
+            }
+        }
+        let m_inv: Vec<f64> = bodies.iter().flat_map(|b| [b.inv_mass[0], b.inv_mass[1], b.inv_inertia]).collect();
+        let w = |p: usize, q: usize| (0..3 * nb).map(|d| b[p][d] * m_inv[d] * b[q][d]).sum::<f64>();
+        let assembled = op.assemble();
+        for q in 0..2 * nc {
+            let mut e = vec![0.0; 2 * nc];
+            e[q] = 1.0;
+            let mut column = vec![0.0; 2 * nc];
+            op.apply(&e, &mut column);
+            let mut stored = vec![0.0; 2 * nc];
+            assembled.apply(&e, &mut stored);
+            for p in 0..2 * nc {
+                let dense = w(p, q);
+                assert!((column[p] - dense).abs() < 1e-12, "W[{p},{q}]: product {} vs {dense}", column[p]);
+                assert!((stored[p] - dense).abs() < 1e-12, "W[{p},{q}]: assembled {} vs {dense}", stored[p]);
+            }
+        }
+        for (a, block) in op.diag_blocks().iter().enumerate() {
+            let dense = [w(2 * a, 2 * a), w(2 * a, 2 * a + 1), w(2 * a + 1, 2 * a), w(2 * a + 1, 2 * a + 1)];
+            assert!(
+                block.iter().zip(&dense).all(|(x, y)| (x - y).abs() < 1e-12),
+                "contact {a}: {block:?} vs {dense:?}"
+            );
+        }
+    }
 
     /// A long row of disks, its contacts checked and built on threads: the rows and levers of one
     /// thread, and of bad contacts the first named (a later one on another thread is not).

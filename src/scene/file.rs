@@ -250,6 +250,7 @@ struct BodyFileSpec {
     force: Option<P>,
     lock_rotation: Option<bool>,
     mass: Option<f64>,
+    hold_velocity: Option<Vec<String>>,
 }
 
 #[derive(Deserialize, Clone, Copy, PartialEq, Eq)]
@@ -592,6 +593,19 @@ impl Builder<'_> {
             body.force = spec.force.map(v).unwrap_or(DVec2::ZERO);
             body.lock_rotation = spec.lock_rotation.unwrap_or(false);
             body.mass = spec.mass;
+            for axis in spec.hold_velocity.iter().flatten() {
+                match axis.as_str() {
+                    "x" => body.hold_velocity[0] = true,
+                    "y" => body.hold_velocity[1] = true,
+                    other => {
+                        return self.cx.err(
+                            b.span(),
+                            format!("body[{k}].hold_velocity"),
+                            format!("unknown axis '{other}' (x or y)"),
+                        )
+                    }
+                }
+            }
             if body.spin != 0.0 && !effects.rotation {
                 self.warnings
                     .push(format!("body[{k}] has a spin but the effect `rotation` is not named: it is ignored"));

@@ -163,7 +163,11 @@ pub const CRUSH: f64 = 0.5;
 /// between two such motions has no finite impulse to hold it.
 fn squeeze_hint(world: &World) -> &'static str {
     let b = &world.bodies;
-    let driven = (0..b.len()).any(|j| b.inv_mass[j] == 0.0 && (b.velocity[j] != DVec2::ZERO || b.spin_of(j) != 0.0))
+    let prescribed = |j: usize| {
+        let [mx, my] = b.axis_inv_mass(j);
+        (mx == 0.0 && b.velocity[j].x != 0.0) || (my == 0.0 && b.velocity[j].y != 0.0)
+    };
+    let driven = (0..b.len()).any(|j| prescribed(j) || (b.inv_mass[j] == 0.0 && b.spin_of(j) != 0.0))
         || world.walls.iter().any(|w| w.is_moving());
     if driven {
         ", or it is squeezed between walls or fixed bodies whose motion is prescribed, which no contact force can stop"

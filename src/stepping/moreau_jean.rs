@@ -53,7 +53,7 @@ fn operator(world: &World, contacts: &[DetectedContact], dofs: Dofs) -> Result<M
     let b = &world.bodies;
     let position = &b.position;
     let bodies = map_indices(b.len(), |k| Body {
-        inv_mass: b.inv_mass[k],
+        inv_mass: b.axis_inv_mass(k),
         inv_inertia: if dofs.rotation { b.inv_inertia[k] } else { 0.0 },
     });
     let contact = |a: usize| {
@@ -130,10 +130,14 @@ fn free_velocities(world: &World, forces: &[(DVec2, f64)], dofs: Dofs, h: f64) -
     let mut v_free = v_begin.clone();
     let s = dofs.per_body();
     let b = &world.bodies;
+    // Along an axis where a body holds its velocity, nothing changes it.
     if let Some(g) = world.effects.gravity {
         for k in 0..b.len() {
-            if b.inv_mass[k] > 0.0 {
+            let [mx, my] = b.axis_inv_mass(k);
+            if mx > 0.0 {
                 v_free[s * k] += h * g.x;
+            }
+            if my > 0.0 {
                 v_free[s * k + 1] += h * g.y;
             }
         }
@@ -141,12 +145,14 @@ fn free_velocities(world: &World, forces: &[(DVec2, f64)], dofs: Dofs, h: f64) -
     // Constant forces of driven bodies (pistons), then a host's forces for this step (see
     // `Simulation::apply_force`).
     for k in b.driven() {
-        v_free[s * k] += h * b.inv_mass[k] * b.force[k].x;
-        v_free[s * k + 1] += h * b.inv_mass[k] * b.force[k].y;
+        let [mx, my] = b.axis_inv_mass(k);
+        v_free[s * k] += h * mx * b.force[k].x;
+        v_free[s * k + 1] += h * my * b.force[k].y;
     }
     for (k, (force, torque)) in forces.iter().enumerate() {
-        v_free[s * k] += h * b.inv_mass[k] * force.x;
-        v_free[s * k + 1] += h * b.inv_mass[k] * force.y;
+        let [mx, my] = b.axis_inv_mass(k);
+        v_free[s * k] += h * mx * force.x;
+        v_free[s * k + 1] += h * my * force.y;
         if dofs.rotation {
             v_free[s * k + 2] += h * b.inv_inertia[k] * torque;
         }

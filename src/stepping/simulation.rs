@@ -354,8 +354,8 @@ impl Simulation {
     /// settings' solve (the same check the command line makes).
     pub fn set_backend(&mut self, backend: Backend) -> Result<(), StepError> {
         backend.check(self.settings.solver, &self.settings.options).map_err(|e| StepError::Settings(e.to_string()))?;
-        if backend.is_gpu() && self.world.effects.rolling_resistance {
-            return Err(StepError::Settings(crate::backend::ROLLING_ON_CPU.into()));
+        if let Some(why) = crate::backend::cpu_only(&self.world).filter(|_| backend.is_gpu()) {
+            return Err(StepError::Settings(why.into()));
         }
         // The pause of a stalled GPU mixing follows the simulation's solves, not the device.
         // The state of another backend: one a pause reaches.
@@ -368,9 +368,9 @@ impl Simulation {
     /// hardware GPU that can do it, for a scene of at least [`crate::backend::GPU_MIN_BODIES`]
     /// bodies, else the CPU); returns the device and why, in one line.
     pub fn choose_device(&mut self, choice: DeviceChoice) -> Result<String, StepError> {
-        let rolling = self.world.effects.rolling_resistance;
+        let cpu_only = crate::backend::cpu_only(&self.world);
         let bodies = self.world.bodies.len();
-        let backend = Backend::choose_for_scene(choice, self.settings.solver, &self.settings.options, rolling, bodies)
+        let backend = Backend::choose_for_scene(choice, self.settings.solver, &self.settings.options, cpu_only, bodies)
             .map_err(|e| StepError::Settings(e.to_string()))?;
         let line = backend.describe();
         // The state of another backend: one a pause reaches.
@@ -440,6 +440,9 @@ impl Simulation {
     pub fn add_body(&mut self, spec: &BodySpec) -> Result<usize, BodyError> {
         if spec.material >= self.world.materials.len() {
             return Err(BodyError::NoMaterial(spec.material));
+        }
+        if self.backend.is_gpu() && spec.hold_velocity[0] != spec.hold_velocity[1] {
+            return Err(BodyError::Invalid(crate::gpu::HELD_AXIS_ON_CPU.into()));
         }
         self.extent = None;
         self.world.add_body(spec).map_err(|e| match e {
@@ -528,7 +531,8 @@ impl Simulation {
         Ok(k)
     }
 
-    /// Sets a body's velocity (from the next step on); a fixed body keeps it (a kinematic body).
+    /// Sets a body's velocity (from the next step on); a fixed body keeps it (a kinematic body),
+    /// as a body keeps it along an axis where it holds its velocity (`hold_velocity`).
     pub fn set_velocity(&mut self, body: usize, velocity: DVec2) -> Result<(), BodyError> {
         let k = self.body_index(body)?;
         finite(k, "velocity", velocity.is_finite(), velocity)?;
@@ -558,7 +562,8 @@ impl Simulation {
         let k = self.moving_body(body)?;
         finite(k, "impulse", impulse.is_finite() && at.is_finite(), (impulse, at))?;
         let b = &mut self.world.bodies;
-        b.velocity[k] += b.inv_mass[k] * impulse;
+        let [mx, my] = b.axis_inv_mass(k);
+        b.velocity[k] += DVec2::new(mx * impulse.x, my * impulse.y);
         if b.has_rotation() {
             b.spin[k] += b.inv_inertia[k] * (at - b.position[k]).perp_dot(impulse);
         }

@@ -58,6 +58,10 @@ pub struct BodySpec {
     /// The mass (kg), instead of the material's density times the area; the moment of inertia
     /// scales with it.
     pub mass: Option<f64>,
+    /// Along x (`[true, false]`), y or both, the body keeps the velocity it is given whatever
+    /// contacts and forces do, and moves freely along the other axis (LMGC90's driven degrees of
+    /// freedom): the top plate of a shear cell, driven along x and pressed by its force along y.
+    pub hold_velocity: [bool; 2],
 }
 
 /// The shape a body is asked for with.
@@ -96,6 +100,7 @@ impl BodySpec {
             force: DVec2::ZERO,
             lock_rotation: false,
             mass: None,
+            hold_velocity: [false; 2],
         }
     }
 
@@ -156,6 +161,9 @@ pub struct Bodies {
     /// Constant forces (N) applied at every step ([`BodySpec::force`]); empty while no body has
     /// one, so that scenes without pistons carry nothing.
     pub force: Vec<DVec2>,
+    /// The axes along which each body holds its velocity ([`BodySpec::hold_velocity`]); empty
+    /// while no body holds one.
+    pub held: Vec<[bool; 2]>,
 }
 
 /// Area, centroid and polar moment of area about the centroid of a counter-clockwise polygon.
@@ -192,6 +200,7 @@ impl Bodies {
             material: Vec::new(),
             tag: Vec::new(),
             force: Vec::new(),
+            held: Vec::new(),
         }
     }
 
@@ -208,6 +217,9 @@ impl Bodies {
         self.tag.remove(k);
         if !self.force.is_empty() {
             self.force.remove(k);
+        }
+        if !self.held.is_empty() {
+            self.held.remove(k);
         }
         if self.rotation {
             self.angle.remove(k);
@@ -258,6 +270,19 @@ impl Bodies {
             return Err(
                 "a fixed body takes no force and no mass (it moves only at the velocity and spin it is given)".into()
             );
+        }
+        if spec.fixed && spec.hold_velocity.contains(&true) {
+            return Err(
+                "a fixed body holds its velocity along both axes already (hold_velocity is for a moving one)".into()
+            );
+        }
+        for (axis, name) in [(0, "x"), (1, "y")] {
+            let force = [spec.force.x, spec.force.y][axis];
+            if spec.hold_velocity[axis] && force != 0.0 {
+                return Err(format!(
+                    "force {force} along {name}, where the body holds its velocity (hold_velocity): it would do nothing"
+                ));
+            }
         }
         if let Some(m) = spec.mass.filter(|m| !(m.is_finite() && *m > 0.0)) {
             return Err(format!("mass {m} must be finite and > 0"));
@@ -354,6 +379,10 @@ impl Bodies {
             self.force.resize(self.len() - 1, DVec2::ZERO);
             self.force.push(spec.force);
         }
+        if spec.hold_velocity.contains(&true) || !self.held.is_empty() {
+            self.held.resize(self.len() - 1, [false; 2]);
+            self.held.push(spec.hold_velocity);
+        }
         Ok(self.len() - 1)
     }
 
@@ -449,6 +478,18 @@ impl Bodies {
     /// The bodies driven by a constant force.
     pub fn driven(&self) -> impl Iterator<Item = usize> + '_ {
         self.force.iter().enumerate().filter(|(_, f)| **f != DVec2::ZERO).map(|(k, _)| k)
+    }
+
+    /// Body `k`'s inverse mass along x and y: 0 where it is fixed or holds its velocity.
+    #[inline]
+    pub fn axis_inv_mass(&self, k: usize) -> [f64; 2] {
+        let held = self.held.get(k).copied().unwrap_or([false; 2]);
+        held.map(|h| if h { 0.0 } else { self.inv_mass[k] })
+    }
+
+    /// Whether a body holds its velocity along one axis only ([`BodySpec::hold_velocity`]).
+    pub fn holds_an_axis(&self) -> bool {
+        self.held.iter().any(|h| h[0] != h[1])
     }
 }
 
