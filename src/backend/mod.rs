@@ -161,7 +161,7 @@ impl Default for Backend {
 }
 
 /// Why the steps of `world` are solved on the CPU only, if they are: rolling unknowns, or a body
-/// that holds its velocity along one axis.
+/// that holds its velocity along an axis.
 pub fn cpu_only(world: &crate::world::World) -> Option<&'static str> {
     if world.effects.rolling_resistance {
         Some(ROLLING_ON_CPU)
@@ -286,7 +286,7 @@ impl Backend {
     }
 
     /// [`Self::choose`] for problems only the CPU solves when `cpu_only` says why (rolling
-    /// unknowns, a body held along one axis: [`cpu_only`]): `auto` then takes the CPU and says
+    /// unknowns, a body held along an axis: [`cpu_only`]): `auto` then takes the CPU and says
     /// why, `gpu` is refused.
     pub fn choose_for(
         choice: DeviceChoice,

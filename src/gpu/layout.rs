@@ -79,8 +79,8 @@ impl MatrixFreeLayout {
                 fill[c.j as usize] += 1;
             }
         }
-        // One inverse mass a body: `gpu::solve` refuses a body held along one axis.
-        let inv_mass = op.bodies.iter().map(|b| [b.inv_mass[0] as f32, b.inv_inertia as f32]).collect();
+        // One inverse mass a body: `gpu::solve` refuses a body held along an axis.
+        let inv_mass = op.bodies.iter().map(|b| [b.inv_mass as f32, b.inv_inertia as f32]).collect();
         Self { contacts, body_start, body_list, inv_mass, rotation: op.dofs.rotation, friction: op.dofs.friction }
     }
 }

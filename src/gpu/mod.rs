@@ -25,8 +25,8 @@ pub use context::{GpuContext, GpuError};
 use crate::problem::ContactProblem;
 use crate::solvers::{SolveReport, SolverKind, SolverOptions};
 
-/// Why a problem with a body that holds its velocity along one axis is solved on the CPU.
-pub const HELD_AXIS_ON_CPU: &str = "a body that holds its velocity along one axis (hold_velocity) is solved on the CPU: the GPU kernels keep one inverse mass a body";
+/// Why a problem with a body that holds its velocity along an axis is solved on the CPU.
+pub const HELD_AXIS_ON_CPU: &str = "a body that holds its velocity along an axis (hold_velocity) is solved on the CPU: the GPU kernels keep one inverse mass a body";
 
 /// Solves `problem` on the GPU with `kind`, or says that the GPU path lacks that solver.
 pub fn solve(
@@ -40,7 +40,7 @@ pub fn solve(
         return Err(GpuError::Criterion(opts.criterion.name().into()));
     }
     if let crate::problem::Delassus::MatrixFree(op) = &problem.w {
-        if op.bodies.iter().any(|b| b.inv_mass[0] != b.inv_mass[1]) {
+        if op.holds_an_axis() {
             return Err(GpuError::Refused(HELD_AXIS_ON_CPU.into()));
         }
     }

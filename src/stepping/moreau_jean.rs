@@ -53,7 +53,7 @@ fn operator(world: &World, contacts: &[DetectedContact], dofs: Dofs) -> Result<M
     let b = &world.bodies;
     let position = &b.position;
     let bodies = map_indices(b.len(), |k| Body {
-        inv_mass: b.axis_inv_mass(k),
+        inv_mass: b.inv_mass[k],
         inv_inertia: if dofs.rotation { b.inv_inertia[k] } else { 0.0 },
     });
     let contact = |a: usize| {
@@ -64,7 +64,10 @@ fn operator(world: &World, contacts: &[DetectedContact], dofs: Dofs) -> Result<M
         };
         Contact { i: c.i, j, normal: c.normal.to_array(), lever_i: (c.point - position[c.i]).to_array(), lever_j }
     };
-    let op = MatrixFree::from_contacts(bodies, contacts.len(), contact, dofs)?;
+    let mut op = MatrixFree::from_contacts(bodies, contacts.len(), contact, dofs)?;
+    if !b.held.is_empty() {
+        op = op.with_held_axes(b.held.clone())?;
+    }
     if !world.effects.rolling_resistance {
         return Ok(op);
     }

@@ -441,7 +441,7 @@ impl Simulation {
         if spec.material >= self.world.materials.len() {
             return Err(BodyError::NoMaterial(spec.material));
         }
-        if self.backend.is_gpu() && spec.hold_velocity[0] != spec.hold_velocity[1] {
+        if self.backend.is_gpu() && spec.hold_velocity.contains(&true) {
             return Err(BodyError::Invalid(crate::gpu::HELD_AXIS_ON_CPU.into()));
         }
         self.extent = None;

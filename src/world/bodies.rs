@@ -487,9 +487,9 @@ impl Bodies {
         held.map(|h| if h { 0.0 } else { self.inv_mass[k] })
     }
 
-    /// Whether a body holds its velocity along one axis only ([`BodySpec::hold_velocity`]).
+    /// Whether a body holds its velocity along an axis ([`BodySpec::hold_velocity`]).
     pub fn holds_an_axis(&self) -> bool {
-        self.held.iter().any(|h| h[0] != h[1])
+        self.held.iter().any(|h| h[0] || h[1])
     }
 }
 
