@@ -402,26 +402,35 @@ fn scenes_refuse_a_force_on_a_fixed_body_and_a_mass_that_is_not_positive() {
 /// conveyor belt: a kinematic body), μ = 0.2.
 fn conveyor(effects: &str) -> String {
     format!(
-        r#"
-effects = [{effects}]
-[time]
-step = 1e-3
-steps = 1000
-[solver]
-name = "nlgs"
-tol = 1e-10
-[contact]
-friction = 0.2
-[[material]]
-name = "m"
-density = 1000.0
+        r#"{}
 [[body]]
 polygon = {{ center = [0.0, -0.05], vertices = [[-5.0, -0.05], [5.0, -0.05], [5.0, 0.05], [-5.0, 0.05]] }}
 fixed = true
 velocity = [1.0, 0.0]
 [[body]]
 disk = {{ center = [0.0, 0.1], radius = 0.1 }}
-"#
+"#,
+        header(effects, 1000, 0.2, 1000.0)
+    )
+}
+
+/// A scene's settings: `effects`, `steps` of 1 ms solved by NLGS to 1e-10, friction `mu`, one
+/// material "m" of `density`.
+fn header(effects: &str, steps: usize, mu: f64, density: f64) -> String {
+    format!(
+        r#"
+effects = [{effects}]
+[time]
+step = 1e-3
+steps = {steps}
+[solver]
+name = "nlgs"
+tol = 1e-10
+[contact]
+friction = {mu}
+[[material]]
+name = "m"
+density = {density}"#
     )
 }
 
@@ -467,19 +476,7 @@ fn a_fixed_body_given_a_velocity_drags_a_grain_as_a_conveyor_belt_does() {
 /// μ = 0.3.
 fn held_block(extra: &str) -> String {
     format!(
-        r#"
-effects = ["gravity", "friction"]
-[time]
-step = 1e-3
-steps = 300
-[solver]
-name = "nlgs"
-tol = 1e-10
-[contact]
-friction = 0.3
-[[material]]
-name = "m"
-density = 500.0
+        r#"{}
 [[body]]
 polygon = {{ center = [0.0, -0.05], vertices = [[-50.0, -0.05], [50.0, -0.05], [50.0, 0.05], [-50.0, 0.05]] }}
 fixed = true
@@ -488,7 +485,8 @@ polygon = {{ center = [0.0, 0.1], vertices = [[-0.5, -0.1], [0.5, -0.1], [0.5, 0
 velocity = [1.0, 0.0]
 hold_velocity = ["x"]
 {extra}
-"#
+"#,
+        header(r#""gravity", "friction""#, 300, 0.3, 500.0)
     )
 }
 
