@@ -551,6 +551,21 @@ fn held_axes_are_checked_and_such_a_scene_is_solved_on_the_cpu() {
     assert!(line.starts_with("cpu") && line.contains("hold_velocity"), "{line}");
     let e = sim.choose_device(DeviceChoice::Gpu).unwrap_err().to_string();
     assert!(e.contains("hold_velocity") && e.contains("CPU"), "{e}");
+    // A grains file has no column for a held axis: saving one is refused, naming the body.
+    let disk = format!(
+        "{}\n[[body]]\ndisk = {{ center = [0.0, 1.0], radius = 0.1 }}\nhold_velocity = [\"y\"]\n",
+        header(r#""gravity""#, 1, 0.0, 1.0)
+    );
+    let (sim, _) = simulation(&disk);
+    let why = moreau::io::grains::unsavable(&sim.world).expect("a held disk is not saved as a free one");
+    assert!(why.contains("body 0 holds its velocity"), "{why}");
+    // A checkpoint names the held axes among the shapes: one is not taken up by a scene that
+    // holds other axes, or none.
+    let prints: Vec<String> = ["[\"x\"]", "[\"y\"]", "[]"]
+        .iter()
+        .map(|axes| simulation(&held_block("").replace("[\"x\"]", axes)).0.world.shapes_fingerprint())
+        .collect();
+    assert!(prints[0] != prints[1] && prints[1] != prints[2] && prints[0] != prints[2], "{prints:?}");
     // Held along both axes, a body is kinematic in translation and turns freely: the CPU too.
     let (mut both, _) =
         simulation(&held_block("").replace("hold_velocity = [\"x\"]", "hold_velocity = [\"x\", \"y\"]"));

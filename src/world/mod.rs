@@ -115,7 +115,10 @@ impl World {
                     words.extend(disks.iter().flat_map(|(c, r)| [c.x.to_bits(), c.y.to_bits(), r.to_bits()]));
                 }
             }
-            words.push(b.material[k] as u64 | u64::from(b.inv_mass[k] == 0.0) << 32);
+            // Held axes in bits 33 and 34: zero, the same words, for a body that holds none.
+            let held = b.held.get(k).copied().unwrap_or([false; 2]);
+            let held = u64::from(held[0]) << 33 | u64::from(held[1]) << 34;
+            words.push(b.material[k] as u64 | u64::from(b.inv_mass[k] == 0.0) << 32 | held);
         }
         for w in &self.walls {
             points(&mut words, &w.shape.local_points());
