@@ -18,7 +18,7 @@ pub fn unsavable(world: &World) -> Option<String> {
     (0..b.len()).find_map(|k| match b.shape[k] {
         BodyShape::Polygon(_) => Some(format!("body {k} is a polygon; a grains file holds disks")),
         BodyShape::Clump(_) => Some(format!("body {k} is a clump; a grains file holds disks")),
-        _ if b.held.get(k).is_some_and(|h| h[0] || h[1]) => {
+        _ if b.held_axes(k).contains(&true) => {
             Some(format!("body {k} holds its velocity along an axis; a grains file has no column for it"))
         }
         _ => None,

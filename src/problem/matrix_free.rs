@@ -892,16 +892,16 @@ impl MatrixFree {
             if b == Body::fixed() {
                 continue;
             }
+            // x·M⁻¹y over the translations (`1/m x·y` unless held along an axis).
+            let [mx, my] = self.axis_inv_mass(k, b);
+            let dot = |x: [f64; 2], y: [f64; 2]| match mx == my {
+                true => mx * (x[0] * y[0] + x[1] * y[1]),
+                false => mx * x[0] * y[0] + my * x[1] * y[1],
+            };
             for &(a, sa, ga) in list {
                 for &(c, sc, gc) in list {
                     let (na, nc) = (self.rows[a].n, self.rows[c].n);
                     let (ta, tc) = ([-na[1], na[0]], [-nc[1], nc[0]]);
-                    // x·M⁻¹y over the translations (`1/m x·y` unless held along an axis).
-                    let [mx, my] = self.axis_inv_mass(k, b);
-                    let dot = |x: [f64; 2], y: [f64; 2]| match mx == my {
-                        true => mx * (x[0] * y[0] + x[1] * y[1]),
-                        false => mx * x[0] * y[0] + my * x[1] * y[1],
-                    };
                     let s = sa * sc;
                     let blk = [
                         s * (dot(na, nc) + b.inv_inertia * ga[0] * gc[0]),

@@ -480,11 +480,16 @@ impl Bodies {
         self.force.iter().enumerate().filter(|(_, f)| **f != DVec2::ZERO).map(|(k, _)| k)
     }
 
+    /// The axes (x, y) along which body `k` holds its velocity ([`BodySpec::hold_velocity`]).
+    #[inline]
+    pub fn held_axes(&self, k: usize) -> [bool; 2] {
+        self.held.get(k).copied().unwrap_or([false; 2])
+    }
+
     /// Body `k`'s inverse mass along x and y: 0 where it is fixed or holds its velocity.
     #[inline]
     pub fn axis_inv_mass(&self, k: usize) -> [f64; 2] {
-        let held = self.held.get(k).copied().unwrap_or([false; 2]);
-        held.map(|h| if h { 0.0 } else { self.inv_mass[k] })
+        self.held_axes(k).map(|h| if h { 0.0 } else { self.inv_mass[k] })
     }
 
     /// Whether a body holds its velocity along an axis ([`BodySpec::hold_velocity`]).

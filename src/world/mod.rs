@@ -116,8 +116,8 @@ impl World {
                 }
             }
             // Held axes in bits 33 and 34: zero, the same words, for a body that holds none.
-            let held = b.held.get(k).copied().unwrap_or([false; 2]);
-            let held = u64::from(held[0]) << 33 | u64::from(held[1]) << 34;
+            let [x, y] = b.held_axes(k);
+            let held = u64::from(x) << 33 | u64::from(y) << 34;
             words.push(b.material[k] as u64 | u64::from(b.inv_mass[k] == 0.0) << 32 | held);
         }
         for w in &self.walls {
