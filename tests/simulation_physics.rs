@@ -510,6 +510,17 @@ fn a_body_held_along_one_axis_keeps_its_velocity_there_and_moves_freely_along_th
         assert!((force.x + 0.3 * load).abs() < 1e-6 * load, "step {k}: friction {} against {}", force.x, -0.3 * load);
     }
     assert!((sim.position(1).x - steps as f64 * h).abs() < 1e-12, "{}", sim.position(1).x);
+    // Two disks held along x side by side, touching, falling together: along their shared
+    // normal (x) neither can move, so no impulse acts there (it made W_nn = 0 and stopped the
+    // run); both fall on at g.
+    let disk = |x: f64| format!("[[body]]\ndisk = {{ center = [{x}, 1.0], radius = 0.1 }}\nhold_velocity = [\"x\"]\n");
+    let (mut pair, _) =
+        simulation(&format!("{}\n{}{}", header(r#""gravity", "friction""#, 1, 0.3, 1.0), disk(0.0), disk(0.2)));
+    for k in 1..=50 {
+        pair.step().unwrap_or_else(|e| panic!("step {k}: {e}"));
+        assert!(pair.contacts().is_empty(), "step {k}: {} contacts between the held disks", pair.contacts().len());
+        assert!((pair.velocity(1).y + 9.81 * k as f64 * h).abs() < 1e-12, "step {k}: {}", pair.velocity(1));
+    }
     // The same block free along x slows at μ (g + 4) and stops.
     let (mut free, _) = simulation(&held_block("force = [0.0, -400.0]").replace("hold_velocity = [\"x\"]", ""));
     for _ in 0..100 {
