@@ -14,7 +14,7 @@
 // or a value added, so that a host can compare the header it was compiled against
 // (`MOREAU_ABI_VERSION`) with the library it runs with (`moreau_abi_version()`). Fields are
 // added at the end of a struct, values at the end of an enum.
-#define MOREAU_ABI_VERSION 2
+#define MOREAU_ABI_VERSION 3
 
 // What a call did.
 typedef enum MoreauStatus {
@@ -143,7 +143,8 @@ typedef struct MoreauWorldSettings {
   struct MoreauLaw law;
 } MoreauWorldSettings;
 
-// How a body added to a world moves at the start; NULL in its place: at rest, free.
+// How a body added to a world moves at the start, and what drives it (a scene's `[[body]]`
+// keywords); NULL in its place, or all zero: at rest, free, its mass from its density.
 typedef struct MoreauMotion {
   // Velocity (m/s).
   double vx;
@@ -153,6 +154,17 @@ typedef struct MoreauMotion {
   // A fixed body has infinite mass: it moves only at `vx`, `vy` and `spin` (a kinematic body:
   // a conveyor, a paddle), which `moreau_simulation_set_velocity` and `_set_spin` change.
   bool fixed;
+  // A constant force (N) on the centre at every step, besides gravity: a piston's load.
+  double force_x;
+  double force_y;
+  // The body keeps its angle: a piston plate that must not tilt.
+  bool lock_rotation;
+  // The mass (kg) instead of the material's density times the area; 0: from the density.
+  double mass;
+  // Along x, along y: the body keeps the velocity it is given whatever contacts and forces do
+  // (LMGC90's driven degrees of freedom), and moves freely along the other axis.
+  bool hold_x;
+  bool hold_y;
 } MoreauMotion;
 
 // What one step did.

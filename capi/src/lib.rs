@@ -381,7 +381,7 @@ pub extern "C" fn moreau_last_error() -> *const c_char {
 /// or a value added, so that a host can compare the header it was compiled against
 /// (`MOREAU_ABI_VERSION`) with the library it runs with (`moreau_abi_version()`). Fields are
 /// added at the end of a struct, values at the end of an enum.
-pub const MOREAU_ABI_VERSION: u32 = 2;
+pub const MOREAU_ABI_VERSION: u32 = 3;
 
 /// The `MOREAU_ABI_VERSION` this library was built with.
 #[no_mangle]
@@ -681,7 +681,8 @@ pub extern "C" fn moreau_world_set_interaction(
     })
 }
 
-/// How a body added to a world moves at the start; NULL in its place: at rest, free.
+/// How a body added to a world moves at the start, and what drives it (a scene's `[[body]]`
+/// keywords); NULL in its place, or all zero: at rest, free, its mass from its density.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default)]
 pub struct MoreauMotion {
@@ -693,6 +694,17 @@ pub struct MoreauMotion {
     /// A fixed body has infinite mass: it moves only at `vx`, `vy` and `spin` (a kinematic body:
     /// a conveyor, a paddle), which `moreau_simulation_set_velocity` and `_set_spin` change.
     pub fixed: bool,
+    /// A constant force (N) on the centre at every step, besides gravity: a piston's load.
+    pub force_x: f64,
+    pub force_y: f64,
+    /// The body keeps its angle: a piston plate that must not tilt.
+    pub lock_rotation: bool,
+    /// The mass (kg) instead of the material's density times the area; 0: from the density.
+    pub mass: f64,
+    /// Along x, along y: the body keeps the velocity it is given whatever contacts and forces do
+    /// (LMGC90's driven degrees of freedom), and moves freely along the other axis.
+    pub hold_x: bool,
+    pub hold_y: bool,
 }
 
 /// Adds `spec` of the named material turned by `angle` and moving as `motion` says; `body` (may
@@ -709,6 +721,9 @@ fn add_body(
     spec.material = w.material_named(text(material, "material")?).map_err(invalid)?;
     let m = peek(motion).copied().unwrap_or_default();
     (spec.angle, spec.velocity, spec.spin, spec.fixed) = (angle, moreau::DVec2::new(m.vx, m.vy), m.spin, m.fixed);
+    (spec.force, spec.lock_rotation) = (moreau::DVec2::new(m.force_x, m.force_y), m.lock_rotation);
+    spec.mass = (m.mass != 0.0).then_some(m.mass);
+    spec.hold_velocity = [m.hold_x, m.hold_y];
     let index = w.add_body(&spec).map_err(invalid)?;
     give_optional(index, body, "body")
 }
@@ -1573,6 +1588,16 @@ mod tests {
         let apart = [0.0, 0.0, 0.1, 0.5, 0.0, 0.1];
         let status = moreau_world_add_clump(world, 0.0, 1.0, apart.as_ptr(), 2, 0.0, grain, std::ptr::null(), none);
         assert!(status == MoreauStatus::InvalidArgument && last_error().contains("clump disk 1"), "{}", last_error());
+        let pushed = MoreauMotion { force_x: 5.0, hold_x: true, ..MoreauMotion::default() };
+        let status = moreau_world_add_disk(world, 0.0, 1.0, 0.1, grain, &pushed, none);
+        assert!(
+            status == MoreauStatus::InvalidArgument && last_error().contains("force 5 along x"),
+            "{}",
+            last_error()
+        );
+        let weightless = MoreauMotion { mass: -1.0, ..MoreauMotion::default() };
+        let status = moreau_world_add_disk(world, 0.0, 1.0, 0.1, grain, &weightless, none);
+        assert!(status == MoreauStatus::InvalidArgument && last_error().contains("mass -1"), "{}", last_error());
         let status = moreau_world_add_drum(world, 0.0, 0.0, 0.1, 2, grain, 0.0, none);
         assert!(status == MoreauStatus::InvalidArgument && last_error().contains("3 <= sides"), "{}", last_error());
         let status = moreau_world_add_drum(world, 0.0, 0.0, 0.1, 8, grain, 1.0, none);

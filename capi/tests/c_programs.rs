@@ -74,7 +74,7 @@ fn the_committed_header_is_what_the_library_exports() {
 
 /// The header's types as of `MOREAU_ABI_VERSION`: its version and a hash of the structs' and
 /// enums' definitions, comments left out. A change to a type changes the hash.
-const RECORDED_ABI: (u32, u64) = (2, 0x6ab1_3753_796b_b313);
+const RECORDED_ABI: (u32, u64) = (3, 0xc735_537c_b05c_d50e);
 
 /// The struct and enum definitions of `header`, comment lines and blank lines left out.
 fn type_definitions(header: &str) -> String {
@@ -352,8 +352,9 @@ fn a_c_program_sets_the_time_step_as_the_library_does() {
 }
 
 /// `examples/c/build_world.c`'s world as a scene file, with its grains file: two materials, a box,
-/// fifteen disks (the last thrown, spinning), a polygon lid, a dimer, and eight grains written right to left (`auto` keeps the file's
-/// order: they lie in one row).
+/// fifteen disks (the last thrown, spinning), a polygon lid, a dimer, a steel block driven along the floor (held along x, pressed
+/// by its force), and eight grains written right to left (`auto` keeps the file's order: they lie in one row; a scene adds its
+/// grains files after its bodies).
 fn write_build_world_scene(dir: &Path) -> (PathBuf, PathBuf) {
     std::fs::create_dir_all(dir).unwrap();
     let grains = dir.join("grains.csv");
@@ -379,7 +380,10 @@ fn write_build_world_scene(dir: &Path) -> (PathBuf, PathBuf) {
     scene.push_str(
         "[[body]]\npolygon = { center = [0.0, 0.6], vertices = [[-0.15, -0.02], [0.15, -0.02], [0.15, 0.02], \
          [-0.15, 0.02]] }\nmaterial = \"steel\"\nangle = 0.1\n[[body]]\nclump = { center = [0.3, 0.4], \
-         disks = [[-0.03, 0.0, 0.04], [0.03, 0.0, 0.04]] }\nmaterial = \"grain\"\nangle = 0.3\n[[grains]]\nfile = \"grains.csv\"\nmaterial = \"grain\"\n",
+         disks = [[-0.03, 0.0, 0.04], [0.03, 0.0, 0.04]] }\nmaterial = \"grain\"\nangle = 0.3\n[[grains]]\nfile = \"grains.csv\"\nmaterial = \"grain\"\n\
+         [[body]]\npolygon = { center = [0.44, 0.02], vertices = [[-0.04, -0.02], [0.04, -0.02], [0.04, 0.02], \
+         [-0.04, 0.02]] }\nmaterial = \"steel\"\nvelocity = [-0.05, 0.0]\nforce = [0.0, -20.0]\nlock_rotation = true\n\
+         mass = 1.0\nhold_velocity = [\"x\"]\n",
     );
     let path = dir.join("build_world.toml");
     std::fs::write(&path, scene).unwrap();
@@ -404,9 +408,16 @@ fn a_world_built_in_c_steps_to_the_bits_of_the_scene_file_describing_it() {
     // The C program's sum, term for term: `sum += x + y + angle`.
     let sum = (0..sim.body_count()).fold(0.0, |s, k| s + (sim.position(k).x + sim.position(k).y + sim.angle(k)));
     assert_eq!(field(&out, "sum").to_bits(), sum.to_bits(), "{out}: the scene's {sum:.17e}");
-    assert_eq!(field(&out, "bodies") as usize, 25, "{out}");
+    assert_eq!(field(&out, "bodies") as usize, 26, "{out}");
+    // The block kept its velocity along x and its angle, and rests on the floor under its 20 N.
+    let block = 17;
+    assert_eq!(field(&out, "block") as usize, block, "{out}");
+    assert_eq!(sim.velocity(block).x, -0.05);
+    assert_eq!((field(&out, "block_x"), field(&out, "block_angle")), (sim.position(block).x, 0.0), "{out}");
+    assert!((sim.position(block).x - (0.44 - 0.05 * 0.2)).abs() < 1e-12, "{}", sim.position(block));
+    assert!((sim.position(block).y - 0.02).abs() < 1e-5, "{}", sim.position(block));
     assert_eq!(field(&out, "lid") as usize, lid, "{out}");
-    assert_eq!((field(&out, "rows"), field(&out, "first_row_body")), (8.0, 17.0), "{out}");
+    assert_eq!((field(&out, "rows"), field(&out, "first_row_body")), (8.0, 18.0), "{out}");
     assert_eq!(field(&out, "contacts") as usize, sim.contacts().len(), "{out}");
     // The lid was set spinning: without the call the run is another.
     assert!(sim.angle(lid) != 0.1 && sim.spin(lid) != 0.0, "{out}");

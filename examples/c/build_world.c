@@ -1,6 +1,7 @@
 /* Builds a world in code from C, without a scene file, and steps it: two materials with their own
  * contact law, a box of three walls, three columns of disks, a polygon lid set spinning after the
- * first step, a dimer (a clump of two disks), and the disks of a grains file when one is given.
+ * first step, a dimer (a clump of two disks), the disks of a grains file when one is given, and a
+ * block driven along the floor as a piston is.
  *
  *   cc -I include examples/c/build_world.c -L target/release -lmoreau_c -o build_world
  *   ./build_world [STEPS [GRAINS.csv]]
@@ -48,6 +49,12 @@ int main(int argc, char **argv) {
     /* A dimer: two overlapping disks (x, y, r) as one rigid grain, turned by 0.3 rad. */
     const double dimer[] = {-0.03, 0.0, 0.04, 0.03, 0.0, 0.04};
     ok = ok && moreau_world_add_clump(world, 0.3, 0.4, dimer, 2, 0.3, "grain", NULL, NULL) == MOREAU_STATUS_OK;
+    /* A steel block driven along the floor: held along x at -0.05 m/s whatever friction does,
+     * pressed down by 20 N, its angle kept, 1 kg instead of its density's 25 kg. */
+    const double block[] = {-0.04, -0.02, 0.04, -0.02, 0.04, 0.02, -0.04, 0.02};
+    MoreauMotion driven = {.vx = -0.05, .force_y = -20.0, .lock_rotation = true, .mass = 1.0, .hold_x = true};
+    size_t block_body = 0;
+    ok = ok && moreau_world_add_polygon(world, 0.44, 0.02, block, 4, 0.0, "steel", &driven, &block_body) == MOREAU_STATUS_OK;
     size_t rows = 0, first_row_body = 0;
     if (ok && argc > 2) {
         ok = moreau_world_add_grains(world, argv[2], "grain", "auto", &rows) == MOREAU_STATUS_OK;
@@ -86,6 +93,8 @@ int main(int argc, char **argv) {
     printf("steps %zu bodies %zu lid %zu rows %zu first_row_body %zu contacts %zu unconverged %d\n", report.step,
            bodies, lid_body, rows, first_row_body, moreau_simulation_contact_count(sim), unconverged);
     printf("lid %.6f %.6f angle %.6f sum %.17g\n", xy[2 * lid_body], xy[2 * lid_body + 1], angles[lid_body], sum);
+    printf("block %zu block_x %.17g block_y %.17g block_angle %.17g\n", block_body, xy[2 * block_body], xy[2 * block_body + 1],
+           angles[block_body]);
     free(xy);
     free(angles);
     moreau_simulation_free(sim);

@@ -442,26 +442,27 @@ class Simulation:
 
     def add_disk(self, center: Sequence[float], radius: float, material: str,
                  velocity: Sequence[float] = (0.0, 0.0), spin: float = 0.0, fixed: bool = False,
-                 tag: int = 0) -> int:
+                 tag: int = 0, **drive: Any) -> int:
         """Adds a disk between steps (a fixed one moves only at its velocity and spin); returns
-        its index."""
-        return self._inner.add_disk(tuple(center), radius, material, tuple(velocity), spin, fixed, tag)
+        its index. ``drive``: ``World.add_disk``'s keywords ``force``, ``lock_rotation``,
+        ``mass``, ``hold_velocity``, which make a piston or a driven plate."""
+        return self._inner.add_disk(tuple(center), radius, material, tuple(velocity), spin, fixed, tag, **drive)
 
     def add_polygon(self, center: Sequence[float], vertices: Sequence[Sequence[float]], material: str,
                     angle: float = 0.0, velocity: Sequence[float] = (0.0, 0.0), spin: float = 0.0,
-                    fixed: bool = False, tag: int = 0) -> int:
+                    fixed: bool = False, tag: int = 0, **drive: Any) -> int:
         """Adds a convex polygon between steps (vertices relative to ``center``, in either
-        order); returns its index."""
+        order); returns its index. ``drive`` as ``add_disk``'s."""
         return self._inner.add_polygon(tuple(center), [tuple(v) for v in vertices], material, angle,
-                                       tuple(velocity), spin, fixed, tag)
+                                       tuple(velocity), spin, fixed, tag, **drive)
 
     def add_clump(self, center: Sequence[float], disks: Sequence[Sequence[float]], material: str,
                   angle: float = 0.0, velocity: Sequence[float] = (0.0, 0.0), spin: float = 0.0,
-                  fixed: bool = False, tag: int = 0) -> int:
+                  fixed: bool = False, tag: int = 0, **drive: Any) -> int:
         """Adds a clump between steps: disks ``(x, y, r)`` (centres relative to ``center``) that
-        overlap into one rigid grain; returns its index."""
+        overlap into one rigid grain; returns its index. ``drive`` as ``add_disk``'s."""
         return self._inner.add_clump(tuple(center), [tuple(d) for d in disks], material, angle,
-                                     tuple(velocity), spin, fixed, tag)
+                                     tuple(velocity), spin, fixed, tag, **drive)
 
     def remove_body(self, body: int) -> None:
         """Removes a body; the bodies after it move down one index, its contacts go."""

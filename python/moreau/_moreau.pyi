@@ -65,6 +65,11 @@ class World:
         spin: float = 0.0,
         fixed: bool = False,
         tag: int = 0,
+        *,
+        force: _Vec = (0.0, 0.0),
+        lock_rotation: bool = False,
+        mass: Optional[float] = None,
+        hold_velocity: Sequence[str] = (),
     ) -> int: ...
     def add_grains(self, path: _Path, material: str, order: str = "auto") -> List[int]: ...
     def add_polygon(
@@ -77,6 +82,11 @@ class World:
         spin: float = 0.0,
         fixed: bool = False,
         tag: int = 0,
+        *,
+        force: _Vec = (0.0, 0.0),
+        lock_rotation: bool = False,
+        mass: Optional[float] = None,
+        hold_velocity: Sequence[str] = (),
     ) -> int: ...
     def add_clump(
         self,
@@ -88,6 +98,11 @@ class World:
         spin: float = 0.0,
         fixed: bool = False,
         tag: int = 0,
+        *,
+        force: _Vec = (0.0, 0.0),
+        lock_rotation: bool = False,
+        mass: Optional[float] = None,
+        hold_velocity: Sequence[str] = (),
     ) -> int: ...
     def add_wall(self, a: _Vec, b: _Vec, material: str, velocity: _Vec = (0.0, 0.0)) -> int: ...
     def add_polygon_wall(
@@ -170,6 +185,11 @@ class Simulation:
         spin: float = 0.0,
         fixed: bool = False,
         tag: int = 0,
+        *,
+        force: _Vec = (0.0, 0.0),
+        lock_rotation: bool = False,
+        mass: Optional[float] = None,
+        hold_velocity: Sequence[str] = (),
     ) -> int: ...
     def add_polygon(
         self,
@@ -181,6 +201,11 @@ class Simulation:
         spin: float = 0.0,
         fixed: bool = False,
         tag: int = 0,
+        *,
+        force: _Vec = (0.0, 0.0),
+        lock_rotation: bool = False,
+        mass: Optional[float] = None,
+        hold_velocity: Sequence[str] = (),
     ) -> int: ...
     def add_clump(
         self,
@@ -192,6 +217,11 @@ class Simulation:
         spin: float = 0.0,
         fixed: bool = False,
         tag: int = 0,
+        *,
+        force: _Vec = (0.0, 0.0),
+        lock_rotation: bool = False,
+        mass: Optional[float] = None,
+        hold_velocity: Sequence[str] = (),
     ) -> int: ...
     def remove_body(self, body: int) -> None: ...
     def write_checkpoint(self, path: _Path, scene: Optional[_Path] = None) -> None: ...

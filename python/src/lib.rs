@@ -204,6 +204,7 @@ fn body_spec(
     spin: f64,
     fixed: bool,
     tag: u32,
+    drive: Drive,
 ) -> PyResult<BodySpec> {
     spec.material = material_named(world, material_name)?;
     spec.angle = angle;
@@ -211,7 +212,23 @@ fn body_spec(
     spec.spin = spin;
     spec.fixed = fixed;
     spec.tag = tag;
+    spec.force = vec2(drive.force);
+    spec.lock_rotation = drive.lock_rotation;
+    spec.mass = drive.mass;
+    for axis in &drive.hold_velocity {
+        spec.hold_axis(axis).map_err(|e| error(format!("hold_velocity: {e}")))?;
+    }
     Ok(spec)
+}
+
+/// The keywords that make a body a piston or a driven plate, as a scene's `[[body]]` has them:
+/// a constant force (N), its angle kept, its mass (kg) instead of density × area, the axes
+/// ("x", "y") along which it keeps its velocity.
+struct Drive {
+    force: (f64, f64),
+    lock_rotation: bool,
+    mass: Option<f64>,
+    hold_velocity: Vec<String>,
 }
 
 #[pymethods]
@@ -250,8 +267,10 @@ impl World {
         self.0.set_interaction(a, b, law).map_err(error)
     }
 
-    /// Adds a disk; returns its index.
-    #[pyo3(signature = (center, radius, material, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0))]
+    /// Adds a disk; returns its index. The keyword-only `force`, `lock_rotation`, `mass` and
+    /// `hold_velocity` (axes "x", "y") make a piston or a driven plate, as in a scene's `[[body]]`;
+    /// `add_polygon` and `add_clump` take them too.
+    #[pyo3(signature = (center, radius, material, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0, *, force = (0.0, 0.0), lock_rotation = false, mass = None, hold_velocity = Vec::new()))]
     #[allow(clippy::too_many_arguments)]
     fn add_disk(
         &mut self,
@@ -262,14 +281,28 @@ impl World {
         spin: f64,
         fixed: bool,
         tag: u32,
+        force: (f64, f64),
+        lock_rotation: bool,
+        mass: Option<f64>,
+        hold_velocity: Vec<String>,
     ) -> PyResult<usize> {
-        let spec =
-            body_spec(&self.0, BodySpec::disk(vec2(center), radius, 0), material, 0.0, velocity, spin, fixed, tag)?;
+        let drive = Drive { force, lock_rotation, mass, hold_velocity };
+        let spec = body_spec(
+            &self.0,
+            BodySpec::disk(vec2(center), radius, 0),
+            material,
+            0.0,
+            velocity,
+            spin,
+            fixed,
+            tag,
+            drive,
+        )?;
         self.add(&spec)
     }
 
     /// Adds a convex polygon (vertices relative to `center`); returns its index.
-    #[pyo3(signature = (center, vertices, material, angle = 0.0, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0))]
+    #[pyo3(signature = (center, vertices, material, angle = 0.0, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0, *, force = (0.0, 0.0), lock_rotation = false, mass = None, hold_velocity = Vec::new()))]
     #[allow(clippy::too_many_arguments)]
     fn add_polygon(
         &mut self,
@@ -281,15 +314,20 @@ impl World {
         spin: f64,
         fixed: bool,
         tag: u32,
+        force: (f64, f64),
+        lock_rotation: bool,
+        mass: Option<f64>,
+        hold_velocity: Vec<String>,
     ) -> PyResult<usize> {
+        let drive = Drive { force, lock_rotation, mass, hold_velocity };
         let shape = BodySpec::polygon(vec2(center), vertices.into_iter().map(vec2).collect(), 0);
-        let spec = body_spec(&self.0, shape, material, angle, velocity, spin, fixed, tag)?;
+        let spec = body_spec(&self.0, shape, material, angle, velocity, spin, fixed, tag, drive)?;
         self.add(&spec)
     }
 
     /// Adds a clump: disks `(x, y, r)` (centres relative to `center`) that overlap into one
     /// rigid grain, turning about their union's centroid; returns its index.
-    #[pyo3(signature = (center, disks, material, angle = 0.0, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0))]
+    #[pyo3(signature = (center, disks, material, angle = 0.0, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0, *, force = (0.0, 0.0), lock_rotation = false, mass = None, hold_velocity = Vec::new()))]
     #[allow(clippy::too_many_arguments)]
     fn add_clump(
         &mut self,
@@ -301,8 +339,13 @@ impl World {
         spin: f64,
         fixed: bool,
         tag: u32,
+        force: (f64, f64),
+        lock_rotation: bool,
+        mass: Option<f64>,
+        hold_velocity: Vec<String>,
     ) -> PyResult<usize> {
-        let spec = body_spec(&self.0, clump(center, disks), material, angle, velocity, spin, fixed, tag)?;
+        let drive = Drive { force, lock_rotation, mass, hold_velocity };
+        let spec = body_spec(&self.0, clump(center, disks), material, angle, velocity, spin, fixed, tag, drive)?;
         self.add(&spec)
     }
 
@@ -649,7 +692,7 @@ impl Simulation {
     }
 
     /// Adds a disk between steps, checked as `World.add_disk`'s; returns its index.
-    #[pyo3(signature = (center, radius, material, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0))]
+    #[pyo3(signature = (center, radius, material, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0, *, force = (0.0, 0.0), lock_rotation = false, mass = None, hold_velocity = Vec::new()))]
     #[allow(clippy::too_many_arguments)]
     fn add_disk(
         &mut self,
@@ -660,15 +703,20 @@ impl Simulation {
         spin: f64,
         fixed: bool,
         tag: u32,
+        force: (f64, f64),
+        lock_rotation: bool,
+        mass: Option<f64>,
+        hold_velocity: Vec<String>,
     ) -> PyResult<usize> {
+        let drive = Drive { force, lock_rotation, mass, hold_velocity };
         let shape = BodySpec::disk(vec2(center), radius, 0);
-        let spec = body_spec(&self.0.world, shape, material, 0.0, velocity, spin, fixed, tag)?;
+        let spec = body_spec(&self.0.world, shape, material, 0.0, velocity, spin, fixed, tag, drive)?;
         self.0.add_body(&spec).map_err(error)
     }
 
     /// Adds a convex polygon between steps (vertices relative to `center`), checked as
     /// `World.add_polygon`'s; returns its index.
-    #[pyo3(signature = (center, vertices, material, angle = 0.0, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0))]
+    #[pyo3(signature = (center, vertices, material, angle = 0.0, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0, *, force = (0.0, 0.0), lock_rotation = false, mass = None, hold_velocity = Vec::new()))]
     #[allow(clippy::too_many_arguments)]
     fn add_polygon(
         &mut self,
@@ -680,15 +728,20 @@ impl Simulation {
         spin: f64,
         fixed: bool,
         tag: u32,
+        force: (f64, f64),
+        lock_rotation: bool,
+        mass: Option<f64>,
+        hold_velocity: Vec<String>,
     ) -> PyResult<usize> {
+        let drive = Drive { force, lock_rotation, mass, hold_velocity };
         let shape = BodySpec::polygon(vec2(center), vertices.into_iter().map(vec2).collect(), 0);
-        let spec = body_spec(&self.0.world, shape, material, angle, velocity, spin, fixed, tag)?;
+        let spec = body_spec(&self.0.world, shape, material, angle, velocity, spin, fixed, tag, drive)?;
         self.0.add_body(&spec).map_err(error)
     }
 
     /// Adds a clump between steps (disks `(x, y, r)` relative to `center`); the keywords are
     /// `World.add_clump`'s; returns its index.
-    #[pyo3(signature = (center, disks, material, angle = 0.0, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0))]
+    #[pyo3(signature = (center, disks, material, angle = 0.0, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0, *, force = (0.0, 0.0), lock_rotation = false, mass = None, hold_velocity = Vec::new()))]
     #[allow(clippy::too_many_arguments)]
     fn add_clump(
         &mut self,
@@ -700,8 +753,13 @@ impl Simulation {
         spin: f64,
         fixed: bool,
         tag: u32,
+        force: (f64, f64),
+        lock_rotation: bool,
+        mass: Option<f64>,
+        hold_velocity: Vec<String>,
     ) -> PyResult<usize> {
-        let spec = body_spec(&self.0.world, clump(center, disks), material, angle, velocity, spin, fixed, tag)?;
+        let drive = Drive { force, lock_rotation, mass, hold_velocity };
+        let spec = body_spec(&self.0.world, clump(center, disks), material, angle, velocity, spin, fixed, tag, drive)?;
         self.0.add_body(&spec).map_err(error)
     }
 

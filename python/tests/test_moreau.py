@@ -470,6 +470,39 @@ def test_a_fixed_plate_given_a_velocity_from_python_carries_a_grain_as_a_belt_do
         sim.add_disk((0.0, 3.0), 0.1, "rubber", spin=1.0)
 
 
+def test_a_block_held_along_x_from_python_slides_at_its_velocity_pressed_by_its_force():
+    # A scene's piston keywords from Python: a 100 kg block (its mass given: density x area is 500 kg) held
+    # along x at 1 m/s on a fixed floor, pressed down by 400 N with its angle kept. Friction drags
+    # it with 0.3 times its load and does not slow it; along y it rests on the floor.
+    world = moreau.World([("steel", 2500.0)], friction=0.3, gravity=(0.0, -9.81), rotation=True)
+    world.add_polygon((0.0, -0.05), [(-50.0, -0.05), (50.0, -0.05), (50.0, 0.05), (-50.0, 0.05)], "steel", fixed=True)
+    block = world.add_polygon((0.0, 0.1), [(-0.5, -0.1), (0.5, -0.1), (0.5, 0.1), (-0.5, 0.1)], "steel",
+                              velocity=(1.0, 0.0), force=(0.0, -400.0), lock_rotation=True, mass=100.0,
+                              hold_velocity=("x",))
+    sim = moreau.Simulation(world, h=1e-3, tol=1e-10)
+    load = 100.0 * 9.81 + 400.0
+    for _ in range(200):
+        assert sim.step()["converged"]
+        assert sim.velocities[block, 0] == 1.0 and sim.angles[block] == 0.0
+        np.testing.assert_allclose(sim.body_loads()["force"][block], [-0.3 * load, load], rtol=1e-6)
+    assert abs(sim.positions[block, 1] - 0.1) < 1e-6
+    # Free along x, the same block slows at 0.3 (g + 4 m/s²) and stops.
+    world = moreau.World([("steel", 2500.0)], friction=0.3, gravity=(0.0, -9.81))
+    world.add_polygon((0.0, -0.05), [(-50.0, -0.05), (50.0, -0.05), (50.0, 0.05), (-50.0, 0.05)], "steel", fixed=True)
+    free = moreau.Simulation(world, h=1e-3, tol=1e-10)
+    block = free.add_polygon((0.0, 0.1), [(-0.5, -0.1), (0.5, -0.1), (0.5, 0.1), (-0.5, 0.1)], "steel",
+                             velocity=(1.0, 0.0), force=(0.0, -400.0), mass=100.0)
+    for _ in range(100):
+        free.step()
+    assert abs(free.velocities[block, 0] - (1.0 - 0.3 * (9.81 + 4.0) * 0.1)) < 1e-6
+    with pytest.raises(moreau.MoreauError, match="hold_velocity: unknown axis 'z'"):
+        free.add_disk((0.0, 3.0), 0.1, "steel", hold_velocity=["z"])
+    with pytest.raises(moreau.MoreauError, match="along x, where the body holds its velocity"):
+        free.add_disk((0.0, 3.0), 0.1, "steel", force=(1.0, 0.0), hold_velocity=["x"])
+    with pytest.raises(moreau.MoreauError, match="mass"):
+        free.add_clump((0.0, 3.0), [(0.0, 0.0, 0.1)], "steel", mass=-1.0)
+
+
 def test_a_clump_from_python_topples_and_lies_on_both_disks_with_its_centre_falling_straight():
     # A dimer (two disks of radius 0.1, centres 0.16 apart) standing tilted by 0.05 rad on a
     # frictionless floor: no horizontal force, so its centre falls straight down as it topples.

@@ -594,16 +594,8 @@ impl Builder<'_> {
             body.lock_rotation = spec.lock_rotation.unwrap_or(false);
             body.mass = spec.mass;
             for axis in spec.hold_velocity.iter().flatten() {
-                match axis.as_str() {
-                    "x" => body.hold_velocity[0] = true,
-                    "y" => body.hold_velocity[1] = true,
-                    other => {
-                        return self.cx.err(
-                            b.span(),
-                            format!("body[{k}].hold_velocity"),
-                            format!("unknown axis '{other}' (x or y)"),
-                        )
-                    }
+                if let Err(e) = body.hold_axis(axis) {
+                    return self.cx.err(b.span(), format!("body[{k}].hold_velocity"), e);
                 }
             }
             if body.spin != 0.0 && !effects.rotation {

@@ -104,6 +104,17 @@ impl BodySpec {
         }
     }
 
+    /// Holds the body's velocity along the axis named `axis` ("x" or "y"), as a scene's
+    /// `hold_velocity = ["x"]` does.
+    pub fn hold_axis(&mut self, axis: &str) -> Result<(), String> {
+        match axis {
+            "x" => self.hold_velocity[0] = true,
+            "y" => self.hold_velocity[1] = true,
+            other => return Err(format!("unknown axis '{other}' (x or y)")),
+        }
+        Ok(())
+    }
+
     /// A convex polygon, vertices relative to `center`, at rest.
     pub fn polygon(center: DVec2, vertices: Vec<DVec2>, material: usize) -> Self {
         Self { shape: SpecShape::Polygon { vertices }, ..Self::disk(center, 0.0, material) }
