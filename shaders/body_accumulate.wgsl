@@ -4,11 +4,12 @@
 
 #import grid
 #import contact
+#import masses
 
 @group(0) @binding(0) var<storage, read> contacts: array<Contact>;
 @group(0) @binding(1) var<storage, read> body_start: array<u32>;
 @group(0) @binding(2) var<storage, read> body_list: array<u32>; // contact index, top bit set when the body is j
-@group(0) @binding(3) var<storage, read> inv_mass: array<vec2<f32>>; // (1/m, 1/I)
+@group(0) @binding(3) var<storage, read> inv_mass: array<vec2<f32>>; // (1/m, 1/I), held axes in the sign bits
 @group(0) @binding(4) var<storage, read> r: array<vec2<f32>>;
 @group(0) @binding(5) var<storage, read_write> v: array<vec4<f32>>; // (v_x, v_y, ω, 0)
 
@@ -42,6 +43,6 @@ fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups)
             torque = torque + s * tq;
         }
     }
-    let im = inv_mass[k];
-    v[k] = vec4<f32>(im.x * p, im.y * torque, 0.0);
+    let im = inverse_masses(inv_mass[k]);
+    v[k] = vec4<f32>(im.x * p.x, im.y * p.y, im.z * torque, 0.0);
 }

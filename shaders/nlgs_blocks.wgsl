@@ -8,6 +8,7 @@
 
 #import single_contact
 #import contact
+#import masses
 #import nlgs_update
 
 // The blocks of one block colour: `count` entries of `block_order` from `first`, each swept

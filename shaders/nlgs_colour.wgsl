@@ -7,6 +7,7 @@
 #import single_contact
 #import contact
 #import range
+#import masses
 #import nlgs_update
 
 // Bindings 0–7: nlgs_update's.

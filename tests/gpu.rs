@@ -8,7 +8,7 @@ use std::path::Path;
 
 use moreau::gpu::colouring::{BlockColouring, Colouring};
 use moreau::gpu::cpu;
-use moreau::gpu::layout::{to_f32_pairs, BsrLayout, MatrixFreeLayout};
+use moreau::gpu::layout::{to_f32_pairs, BsrLayout, MatrixFreeLayout, NO_ANTAGONIST};
 use moreau::gpu::{stages, GpuContext};
 use moreau::problem::generate::{lattice_packing, random_small};
 use moreau::problem::{ContactProblem, Delassus};
@@ -38,6 +38,22 @@ fn pile_problem(effects: &str) -> ContactProblem {
     sim.last_problem().unwrap().clone()
 }
 
+/// The pile's problem with a third of its grains held along x and a third along y
+/// (`hold_velocity`), none that touches a wall (whose infinite mass would leave the contact
+/// nothing to move along its normal): the kernels' packed inverse masses against the operator's.
+fn held_pile_problem() -> ContactProblem {
+    let mut p = pile_problem(r#""gravity", "friction", "rotation""#);
+    let Delassus::MatrixFree(op) = &p.w else { panic!("the pile is matrix-free") };
+    let layout = MatrixFreeLayout::new(op);
+    let mut on_wall = vec![false; layout.inv_mass.len()];
+    for c in layout.contacts.iter().filter(|c| c.j == NO_ANTAGONIST) {
+        on_wall[c.i as usize] = true;
+    }
+    let held = (0..on_wall.len()).map(|k| if on_wall[k] { [false; 2] } else { [k % 3 == 0, k % 3 == 1] }).collect();
+    p.w = Delassus::MatrixFree(op.clone().with_held_axes(held).unwrap());
+    p
+}
+
 #[test]
 fn every_kernel_matches_its_cpu_mirror() {
     let Some(ctx) = common::gpu_context() else { return };
@@ -47,6 +63,7 @@ fn every_kernel_matches_its_cpu_mirror() {
         ("pile", pile_problem(r#""gravity", "friction", "rotation""#)),
         ("pile without rotation", pile_problem(r#""gravity", "friction""#)),
         ("frictionless pile", pile_problem(r#""gravity""#)),
+        ("pile with held grains", held_pile_problem()),
     ];
     for (name, p) in &problems {
         let nc = p.n_contacts();
@@ -616,6 +633,30 @@ fn a_clump_rests_on_a_slope_on_the_gpu_as_on_the_cpu() {
     let v = sim.velocity(0).dot(moreau::DVec2::new(t.cos(), -t.sin()));
     assert!((v - rolling).abs() < 5e-3 * rolling, "disk {v} m/s, rolling {rolling} m/s");
     assert!(sim.velocity(1).length() < 1e-6, "the dimer moves at {}", sim.velocity(1));
+}
+
+/// A block held along x at 1 m/s on a fixed floor (`hold_velocity`), pressed by 400 N, μ 0.3,
+/// its steps solved on the software adapter: it keeps 1 m/s to the bit and rests on the floor,
+/// which pushes back its weight plus the force and drags on it with μ times that. Tolerance: 1e-6
+/// of the load, as on the CPU (the solves finish in f64 there).
+#[test]
+fn a_block_held_along_x_slides_on_the_gpu_as_on_the_cpu() {
+    let Some(ctx) = common::gpu_context() else { return };
+    let (mut sim, _) = gpu_simulation(ctx, &common::held_block("force = [0.0, -400.0]"));
+    let (load, h) = (100.0 * 9.81 + 400.0, 1e-3);
+    let mut on_gpu = 0;
+    for k in 1..=100 {
+        let report = sim.step().unwrap();
+        assert!(report.converged, "step {k}: {report:?}");
+        on_gpu += report.gpu_iterations;
+        assert_eq!(sim.velocity(1).x, 1.0, "step {k}");
+        assert!((sim.position(1).y - 0.1).abs() < 1e-6, "step {k}: y {}", sim.position(1).y);
+        let on_block = |c: &moreau::stepping::ContactState| if c.contact.i == 1 { c.force(h) } else { -c.force(h) };
+        let force: moreau::DVec2 = sim.contacts().iter().map(on_block).sum();
+        assert!((force.y - load).abs() < 1e-6 * load, "step {k}: floor pushes {force} against {load}");
+        assert!((force.x + 0.3 * load).abs() < 1e-6 * load, "step {k}: friction {}", force.x);
+    }
+    assert!(on_gpu > 0, "no iteration ran on the GPU");
 }
 
 /// Buffers are taken from the context's pool and written in place: a solve after others of

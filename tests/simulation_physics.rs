@@ -1,11 +1,15 @@
 //! Physics of the simulation pipeline that can fail: Coulomb on an incline, rolling, energy,
 //! resting stacks, penetration, settling.
 
+mod common;
+
 use std::path::Path;
 
 use glam::DVec2;
 use moreau::scene;
 use moreau::stepping::Simulation;
+
+use common::{held_block, scene_header as header};
 
 fn simulation(toml: &str) -> (Simulation, usize) {
     let s = scene::parse(toml, Path::new("test.toml")).unwrap_or_else(|e| panic!("{e}"));
@@ -21,28 +25,12 @@ fn incline(deg: f64, mu: f64, effects: &str) -> String {
     let c = 2.0 * dir + 0.1 * n;
     let b = 20.0 * dir;
     format!(
-        r#"
-effects = [{effects}]
-[time]
-step = 1e-3
-steps = 500
-[solver]
-name = "nlgs"
-tol = 1e-10
-[contact]
-friction = {mu}
-[[material]]
-name = "m"
-density = 1000.0
-[[wall]]
-segment = [[0.0, 0.0], [{bx}, {by}]]
-[[body]]
-disk = {{ center = [{cx}, {cy}], radius = 0.1 }}
-"#,
-        bx = b.x,
-        by = b.y,
-        cx = c.x,
-        cy = c.y
+        "{}\n[[wall]]\nsegment = [[0.0, 0.0], [{}, {}]]\n[[body]]\ndisk = {{ center = [{}, {}], radius = 0.1 }}\n",
+        header(effects, 500, mu, 1000.0),
+        b.x,
+        b.y,
+        c.x,
+        c.y
     )
 }
 
@@ -414,26 +402,6 @@ disk = {{ center = [0.0, 0.1], radius = 0.1 }}
     )
 }
 
-/// A scene's settings: `effects`, `steps` of 1 ms solved by NLGS to 1e-10, friction `mu`, one
-/// material "m" of `density`.
-fn header(effects: &str, steps: usize, mu: f64, density: f64) -> String {
-    format!(
-        r#"
-effects = [{effects}]
-[time]
-step = 1e-3
-steps = {steps}
-[solver]
-name = "nlgs"
-tol = 1e-10
-[contact]
-friction = {mu}
-[[material]]
-name = "m"
-density = {density}"#
-    )
-}
-
 #[test]
 fn a_fixed_body_given_a_velocity_drags_a_grain_as_a_conveyor_belt_does() {
     // Without rotation the disk slides, accelerated by μ g, until it moves with the belt (within
@@ -469,25 +437,6 @@ fn a_fixed_body_given_a_velocity_drags_a_grain_as_a_conveyor_belt_does() {
         sim.step().unwrap();
     }
     assert!((sim.angle(0) - 0.1).abs() < 1e-12 && sim.spin(0) == 0.5, "{}", sim.angle(0));
-}
-
-/// A block 1 m × 0.2 m of 100 kg on a fixed floor, held along x at 1 m/s (`hold_velocity`, the
-/// plate of a shear cell driven along x) and free along y, pressed by `extra` besides gravity;
-/// μ = 0.3.
-fn held_block(extra: &str) -> String {
-    format!(
-        r#"{}
-[[body]]
-polygon = {{ center = [0.0, -0.05], vertices = [[-50.0, -0.05], [50.0, -0.05], [50.0, 0.05], [-50.0, 0.05]] }}
-fixed = true
-[[body]]
-polygon = {{ center = [0.0, 0.1], vertices = [[-0.5, -0.1], [0.5, -0.1], [0.5, 0.1], [-0.5, 0.1]] }}
-velocity = [1.0, 0.0]
-hold_velocity = ["x"]
-{extra}
-"#,
-        header(r#""gravity", "friction""#, 300, 0.3, 500.0)
-    )
 }
 
 /// Held along x, the block slides at exactly its velocity whatever friction does, while along y
@@ -542,11 +491,9 @@ fn a_body_held_along_one_axis_keeps_its_velocity_there_and_moves_freely_along_th
 }
 
 /// An axis that is not x or y, a fixed body that holds an axis, a force along a held axis are
-/// refused by name; a scene with a body held along an axis runs on the CPU (`auto` says why)
-/// and is refused on a GPU before any adapter is looked for.
+/// refused by name; a grains file cannot carry a held axis; a checkpoint names them.
 #[test]
-fn held_axes_are_checked_and_such_a_scene_is_solved_on_the_cpu() {
-    use moreau::backend::DeviceChoice;
+fn held_axes_are_checked_saved_only_where_they_can_be_and_named_in_a_checkpoint() {
     for (change, named, words) in [
         ("hold_velocity = [\"x\"]", "hold_velocity = [\"z\"]", "unknown axis 'z'"),
         ("hold_velocity = [\"x\"]", "hold_velocity = [\"x\"]\nforce = [5.0, 0.0]", "force 5 along x"),
@@ -557,11 +504,6 @@ fn held_axes_are_checked_and_such_a_scene_is_solved_on_the_cpu() {
         let msg = e.to_string();
         assert!(msg.contains("body[1]") && msg.contains(words), "{named}: {msg}");
     }
-    let (mut sim, _) = simulation(&held_block(""));
-    let line = sim.choose_device(DeviceChoice::Auto).unwrap();
-    assert!(line.starts_with("cpu") && line.contains("hold_velocity"), "{line}");
-    let e = sim.choose_device(DeviceChoice::Gpu).unwrap_err().to_string();
-    assert!(e.contains("hold_velocity") && e.contains("CPU"), "{e}");
     // A grains file has no column for a held axis: saving one is refused, naming the body.
     let disk = format!(
         "{}\n[[body]]\ndisk = {{ center = [0.0, 1.0], radius = 0.1 }}\nhold_velocity = [\"y\"]\n",
@@ -577,8 +519,4 @@ fn held_axes_are_checked_and_such_a_scene_is_solved_on_the_cpu() {
         .map(|axes| simulation(&held_block("").replace("[\"x\"]", axes)).0.world.shapes_fingerprint())
         .collect();
     assert!(prints[0] != prints[1] && prints[1] != prints[2] && prints[0] != prints[2], "{prints:?}");
-    // Held along both axes, a body is kinematic in translation and turns freely: the CPU too.
-    let (mut both, _) =
-        simulation(&held_block("").replace("hold_velocity = [\"x\"]", "hold_velocity = [\"x\", \"y\"]"));
-    assert!(both.choose_device(DeviceChoice::Auto).unwrap().contains("hold_velocity"));
 }

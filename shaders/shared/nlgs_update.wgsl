@@ -1,7 +1,7 @@
 // One contact's NLGS update on the matrix-free operator: its velocity from the body velocities
 // v = M⁻¹ Bᵀ r, the single-contact solve, and the impulse change scattered into v. It declares
 // the bindings every matrix-free NLGS kernel reads (0–7, the contacts' colour order among them);
-// a kernel that imports it numbers its own from 8. The caller guarantees that no other invocation
+// a kernel that imports it numbers its own from 8, and imports `masses` before it. The caller guarantees that no other invocation
 // touches the contact's moving bodies meanwhile. With a threshold (the work list's sweeps), a
 // contact whose residual in velocity units is within it is left alone: converged contacts do not
 // drift.
@@ -17,12 +17,13 @@
 @group(0) @binding(7) var<storage, read_write> v: array<vec4<f32>>;
 
 fn scatter(k: u32, s: f32, f: vec2<f32>, torque: f32) {
-    let im = inv_mass[k];
-    if (im.x == 0.0 && im.y == 0.0) {
+    let packed = inv_mass[k];
+    if (packed.x == 0.0 && packed.y == 0.0) {
         return; // a fixed body: several contacts of one colour may touch it
     }
+    let im = inverse_masses(packed);
     var dv = v[k];
-    dv = vec4<f32>(dv.xy + s * im.x * f, dv.z + s * im.y * torque, 0.0);
+    dv = vec4<f32>(dv.x + s * im.x * f.x, dv.y + s * im.y * f.y, dv.z + s * im.z * torque, 0.0);
     v[k] = dv;
 }
 

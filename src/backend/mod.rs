@@ -160,16 +160,9 @@ impl Default for Backend {
     }
 }
 
-/// Why the steps of `world` are solved on the CPU only, if they are: rolling unknowns, or a body
-/// that holds its velocity along an axis.
+/// Why the steps of `world` are solved on the CPU only, if they are: rolling unknowns.
 pub fn cpu_only(world: &crate::world::World) -> Option<&'static str> {
-    if world.effects.rolling_resistance {
-        Some(ROLLING_ON_CPU)
-    } else if world.bodies.holds_an_axis() {
-        Some(crate::gpu::HELD_AXIS_ON_CPU)
-    } else {
-        None
-    }
+    world.effects.rolling_resistance.then_some(ROLLING_ON_CPU)
 }
 
 /// Why a problem with rolling unknowns is solved on the CPU.
@@ -286,7 +279,7 @@ impl Backend {
     }
 
     /// [`Self::choose`] for problems only the CPU solves when `cpu_only` says why (rolling
-    /// unknowns, a body held along an axis: [`cpu_only`]): `auto` then takes the CPU and says
+    /// unknowns: [`cpu_only`]): `auto` then takes the CPU and says
     /// why, `gpu` is refused.
     pub fn choose_for(
         choice: DeviceChoice,

@@ -116,7 +116,7 @@ pub struct Kernels {
 }
 
 /// The shared WGSL a kernel pulls in with `#import name` lines: written once, composed at load.
-const MODULES: [(&str, &str); 7] = [
+const MODULES: [(&str, &str); 8] = [
     ("grid", include_str!("../../shaders/shared/grid.wgsl")),
     ("contact", include_str!("../../shaders/shared/contact.wgsl")),
     ("range", include_str!("../../shaders/shared/range.wgsl")),
@@ -124,6 +124,7 @@ const MODULES: [(&str, &str); 7] = [
     ("single_contact", include_str!("../../shaders/shared/single_contact.wgsl")),
     ("mixer", include_str!("../../shaders/shared/mixer.wgsl")),
     ("nlgs_update", include_str!("../../shaders/shared/nlgs_update.wgsl")),
+    ("masses", include_str!("../../shaders/shared/masses.wgsl")),
 ];
 
 /// Every kernel: name, WGSL (before composition), and whether it is specialised by the

@@ -79,10 +79,19 @@ impl MatrixFreeLayout {
                 fill[c.j as usize] += 1;
             }
         }
-        // One inverse mass a body: `gpu::solve` refuses a body held along an axis.
-        let inv_mass = op.bodies.iter().map(|b| [b.inv_mass as f32, b.inv_inertia as f32]).collect();
+        let inv_mass = (0..op.bodies.len()).map(|k| packed_inverse_masses(op, k)).collect();
         Self { contacts, body_start, body_list, inv_mass, rotation: op.dofs.rotation, friction: op.dofs.friction }
     }
+}
+
+/// Body `k`'s inverse masses as the kernels read them, `(1/m, 1/I)` in f32, with the sign bit of
+/// the first (second) set when the body holds its velocity along x (y): eight bytes a body
+/// whether or not any body holds an axis (shaders/shared/masses.wgsl, `cpu::inverse_masses`).
+fn packed_inverse_masses(op: &MatrixFree, k: usize) -> [f32; 2] {
+    let b = op.bodies[k];
+    let [x, y] = op.held_axes(k);
+    let signed = |value: f64, held: bool| if held { -(value as f32) } else { value as f32 };
+    [signed(b.inv_mass, x), signed(b.inv_inertia, y)]
 }
 
 /// An explicit 2×2-block sparse `W` in f32 (problems read from files).

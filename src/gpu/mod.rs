@@ -25,9 +25,6 @@ pub use context::{GpuContext, GpuError};
 use crate::problem::ContactProblem;
 use crate::solvers::{SolveReport, SolverKind, SolverOptions};
 
-/// Why a problem with a body that holds its velocity along an axis is solved on the CPU.
-pub const HELD_AXIS_ON_CPU: &str = "a body that holds its velocity along an axis (hold_velocity) is solved on the CPU: the GPU kernels keep one inverse mass a body";
-
 /// Solves `problem` on the GPU with `kind`, or says that the GPU path lacks that solver.
 pub fn solve(
     ctx: &GpuContext,
@@ -38,11 +35,6 @@ pub fn solve(
 ) -> Result<SolveReport, GpuError> {
     if !opts.criterion.judges_one_iterate() {
         return Err(GpuError::Criterion(opts.criterion.name().into()));
-    }
-    if let crate::problem::Delassus::MatrixFree(op) = &problem.w {
-        if op.holds_an_axis() {
-            return Err(GpuError::Refused(HELD_AXIS_ON_CPU.into()));
-        }
     }
     match kind {
         SolverKind::Jacobi => jacobi::solve(ctx, problem, opts, r0),

@@ -434,9 +434,9 @@ impl MatrixFree {
         Ok(self)
     }
 
-    /// Whether some body holds its velocity along an axis.
-    pub fn holds_an_axis(&self) -> bool {
-        !self.held.is_empty()
+    /// The axes (x, y) along which body `k` holds its velocity.
+    pub fn held_axes(&self, k: usize) -> [bool; 2] {
+        self.held.get(k).copied().unwrap_or([false; 2])
     }
 
     /// Body `k`'s inverse mass along x and y: 0 along an axis it holds.

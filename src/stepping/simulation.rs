@@ -441,9 +441,6 @@ impl Simulation {
         if spec.material >= self.world.materials.len() {
             return Err(BodyError::NoMaterial(spec.material));
         }
-        if self.backend.is_gpu() && spec.hold_velocity.contains(&true) {
-            return Err(BodyError::Invalid(crate::gpu::HELD_AXIS_ON_CPU.into()));
-        }
         self.extent = None;
         self.world.add_body(spec).map_err(|e| match e {
             WorldError::Body(why) => BodyError::Invalid(why),

@@ -502,11 +502,6 @@ impl Bodies {
     pub fn axis_inv_mass(&self, k: usize) -> [f64; 2] {
         self.held_axes(k).map(|h| if h { 0.0 } else { self.inv_mass[k] })
     }
-
-    /// Whether a body holds its velocity along an axis ([`BodySpec::hold_velocity`]).
-    pub fn holds_an_axis(&self) -> bool {
-        self.held.iter().any(|h| h[0] || h[1])
-    }
 }
 
 /// Refuses a polygon of fewer than three vertices or with one that is not finite, naming it.

@@ -136,3 +136,42 @@ pub fn disk_and_dimer_on_a_slope(deg: f64) -> String {
         end.x, end.y, disk.x, disk.y, dimer.x, dimer.y, a.x, a.y, b.x, b.y
     )
 }
+
+/// A scene's settings: `effects`, `steps` of 1 ms solved by NLGS to 1e-10, friction `mu`, one
+/// material "m" of `density`.
+pub fn scene_header(effects: &str, steps: usize, mu: f64, density: f64) -> String {
+    format!(
+        r#"
+effects = [{effects}]
+[time]
+step = 1e-3
+steps = {steps}
+[solver]
+name = "nlgs"
+tol = 1e-10
+[contact]
+friction = {mu}
+[[material]]
+name = "m"
+density = {density}"#
+    )
+}
+
+/// A block 1 m × 0.2 m of 100 kg on a fixed floor, held along x at 1 m/s (`hold_velocity`, the
+/// plate of a shear cell driven along x) and free along y, pressed by `extra` besides gravity;
+/// μ = 0.3.
+pub fn held_block(extra: &str) -> String {
+    format!(
+        r#"{}
+[[body]]
+polygon = {{ center = [0.0, -0.05], vertices = [[-50.0, -0.05], [50.0, -0.05], [50.0, 0.05], [-50.0, 0.05]] }}
+fixed = true
+[[body]]
+polygon = {{ center = [0.0, 0.1], vertices = [[-0.5, -0.1], [0.5, -0.1], [0.5, 0.1], [-0.5, 0.1]] }}
+velocity = [1.0, 0.0]
+hold_velocity = ["x"]
+{extra}
+"#,
+        scene_header(r#""gravity", "friction""#, 300, 0.3, 500.0)
+    )
+}

@@ -26,7 +26,7 @@ pub fn body_accumulate(op: &MatrixFreeLayout, r: &[[f32; 2]], v: &mut [[f32; 4]]
                 torque += s * tq;
             }
         }
-        let im = op.inv_mass[k];
-        *out = [im[0] * p[0], im[0] * p[1], im[1] * torque, 0.0];
+        let im = super::inverse_masses(op.inv_mass[k]);
+        *out = [im[0] * p[0], im[1] * p[1], im[2] * torque, 0.0];
     }
 }

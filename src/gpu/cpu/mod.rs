@@ -25,3 +25,12 @@ pub mod reduce_dot;
 pub mod reduce_final;
 pub mod single_contact;
 pub mod velocity_residual;
+
+/// Mirror of `shaders/shared/masses.wgsl`: a body's packed `(1/m, 1/I)` as
+/// `[1/m along x, 1/m along y, 1/I]`, zero along an axis whose sign bit marks it held.
+#[inline]
+pub fn inverse_masses(packed: [f32; 2]) -> [f32; 3] {
+    let m = packed[0].abs();
+    let along = |held: f32| if held.is_sign_negative() { 0.0 } else { m };
+    [along(packed[0]), along(packed[1]), packed[1].abs()]
+}

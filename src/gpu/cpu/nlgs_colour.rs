@@ -48,12 +48,13 @@ pub fn nlgs_colour(
             }
         }
         let mut scatter = |k: usize, s: f32, torque: f32| {
-            let im = op.inv_mass[k];
-            if im[0] == 0.0 && im[1] == 0.0 {
+            let packed = op.inv_mass[k];
+            if packed[0] == 0.0 && packed[1] == 0.0 {
                 return;
             }
+            let im = super::inverse_masses(packed);
             let x = v[k];
-            v[k] = [x[0] + s * im[0] * f[0], x[1] + s * im[0] * f[1], x[2] + s * im[1] * torque, 0.0];
+            v[k] = [x[0] + s * im[0] * f[0], x[1] + s * im[1] * f[1], x[2] + s * im[2] * torque, 0.0];
         };
         scatter(c.i as usize, 1.0, ti);
         if c.j != NO_ANTAGONIST {
