@@ -344,6 +344,13 @@ enum MoreauStatus moreau_world_set_interaction(struct MoreauWorld *world,
                                                const char *b,
                                                struct MoreauLaw law);
 
+// Makes the bodies and walls of materials `a` and `b` (by name) pass through each other
+// (`through`), or touch again: a scene's `[[interaction]] pass_through`.
+enum MoreauStatus moreau_world_set_pass_through(struct MoreauWorld *world,
+                                                const char *a,
+                                                const char *b,
+                                                bool through);
+
 // Adds a disk of the named material, moving as `motion` says (NULL: at rest); `body` (may be
 // NULL) gets its index.
 enum MoreauStatus moreau_world_add_disk(struct MoreauWorld *world,

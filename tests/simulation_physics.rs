@@ -6,6 +6,7 @@ mod common;
 use std::path::Path;
 
 use glam::DVec2;
+use moreau::detection::Antagonist;
 use moreau::scene;
 use moreau::stepping::Simulation;
 
@@ -519,4 +520,68 @@ fn held_axes_are_checked_saved_only_where_they_can_be_and_named_in_a_checkpoint(
         .map(|axes| simulation(&held_block("").replace("[\"x\"]", axes)).0.world.shapes_fingerprint())
         .collect();
     assert!(prints[0] != prints[1] && prints[1] != prints[2] && prints[0] != prints[2], "{prints:?}");
+}
+
+/// Materials that pass through each other (`[[interaction]] pass_through = true`, LMGC90's
+/// visibility table): a grain falls through a ghost wall and a ghost floor at exactly g while a
+/// ghost disk rests on the same floor and a grain on a grain's; without the setting the grain
+/// rests on the ghost floor too.
+#[test]
+fn materials_that_pass_through_each_other_never_touch() {
+    let scene = |through: &str| {
+        format!(
+            r#"{}
+[[material]]
+name = "ghost"
+density = 1000.0
+[[interaction]]
+materials = ["m", "ghost"]
+{through}
+[[wall]]
+segment = [[-1.0, 0.05], [0.5, 0.05]]
+material = "ghost"
+[[body]]
+polygon = {{ center = [0.0, -0.05], vertices = [[-5.0, -0.05], [5.0, -0.05], [5.0, 0.05], [-5.0, 0.05]] }}
+material = "ghost"
+fixed = true
+[[body]]
+disk = {{ center = [0.0, 0.1], radius = 0.1 }}
+material = "m"
+[[body]]
+disk = {{ center = [1.0, 0.1], radius = 0.1 }}
+material = "ghost"
+[[body]]
+polygon = {{ center = [3.0, -0.05], vertices = [[-0.5, -0.05], [0.5, -0.05], [0.5, 0.05], [-0.5, 0.05]] }}
+material = "m"
+fixed = true
+[[body]]
+disk = {{ center = [3.0, 0.1], radius = 0.1 }}
+material = "m"
+"#,
+            header(r#""gravity", "friction""#, 100, 0.3, 1000.0)
+        )
+    };
+    let (mut sim, steps) = simulation(&scene("pass_through = true"));
+    for k in 1..=steps {
+        let report = sim.step().unwrap();
+        assert!(report.converged, "step {k}: {}", report.error);
+        let t = k as f64 * 1e-3;
+        assert!((sim.velocity(1).y + 9.81 * t).abs() < 1e-12, "step {k}: the grain at {}", sim.velocity(1));
+        for rests in [2, 4] {
+            assert!(sim.velocity(rests).length() < 1e-9, "step {k}: body {rests} at {}", sim.velocity(rests));
+        }
+        let grain = |c: &moreau::stepping::ContactState| c.contact.i == 1 || c.contact.other == Antagonist::Body(1);
+        assert!(!sim.contacts().iter().any(grain), "step {k}: a contact on the grain");
+    }
+    // Through the wall it started across and into the floor: half a radius deep after 0.1 s.
+    let fallen = 0.1 - 0.5 * 9.81 * 0.1f64.powi(2);
+    assert!((sim.position(1).y - fallen).abs() < 1e-9, "the grain at {}, not {fallen}", sim.position(1));
+    let (mut touching, _) = simulation(&scene(""));
+    for _ in 0..steps {
+        touching.step().unwrap();
+    }
+    assert!(touching.velocity(1).length() < 1e-9, "without pass_through the grain rests: {}", touching.velocity(1));
+    let e = scene::parse(&scene("pass_through = 1"), Path::new("ghost.toml")).expect_err("a number for a bool");
+    let line = scene("pass_through = 1").lines().position(|l| l == "pass_through = 1").unwrap() + 1;
+    assert!(e.to_string().contains(&format!("line {line}: invalid type: integer `1`, expected a boolean")), "{e}");
 }

@@ -73,7 +73,7 @@ impl RapierPile {
 /// largest, count), relative to the mean diameter.
 pub fn penetration(world: &World, position: &[DVec2]) -> (f64, f64, usize) {
     let mut detector = Detector::default();
-    let config = Configuration { position, angle: &world.bodies.angle, periodic: None };
+    let config = Configuration { position, angle: &world.bodies.angle, periodic: None, pass_through: None };
     let contacts = detector.detect(&world.bodies, &config, &world.walls, 0.0, &[], &[]);
     let overlaps: Vec<f64> = contacts.iter().filter(|c| c.gap < 0.0).map(|c| -c.gap).collect();
     let d = world.bodies.mean_diameter();

@@ -681,6 +681,21 @@ pub extern "C" fn moreau_world_set_interaction(
     })
 }
 
+/// Makes the bodies and walls of materials `a` and `b` (by name) pass through each other
+/// (`through`), or touch again: a scene's `[[interaction]] pass_through`.
+#[no_mangle]
+pub extern "C" fn moreau_world_set_pass_through(
+    world: *mut MoreauWorld,
+    a: *const c_char,
+    b: *const c_char,
+    through: bool,
+) -> MoreauStatus {
+    guard(|| {
+        let (a, b) = (text(a, "a")?, text(b, "b")?);
+        object_mut(world, "world")?.world.set_pass_through(a, b, through).map_err(invalid)
+    })
+}
+
 /// How a body added to a world moves at the start, and what drives it (a scene's `[[body]]`
 /// keywords); NULL in its place, or all zero: at rest, free, its mass from its density.
 #[repr(C)]
@@ -1574,6 +1589,15 @@ mod tests {
             (status, last_error().as_str()),
             (MoreauStatus::InvalidArgument, "material \"wood\" does not exist")
         );
+        let status = moreau_world_set_pass_through(world, grain, c"wood".as_ptr(), true);
+        assert_eq!(
+            (status, last_error().as_str()),
+            (MoreauStatus::InvalidArgument, "material \"wood\" does not exist")
+        );
+        assert_eq!(moreau_world_set_pass_through(world, grain, grain, true), MoreauStatus::Ok);
+        assert!(peek(world).unwrap().world.materials.pass_through(0, 0));
+        assert_eq!(moreau_world_set_pass_through(world, grain, grain, false), MoreauStatus::Ok);
+        assert!(!peek(world).unwrap().world.materials.any_pass_through());
         let status = moreau_world_add_wall(world, 0.0, 0.0, 0.0, 0.0, grain, 0.0, 0.0, std::ptr::null_mut());
         assert_eq!(status, MoreauStatus::InvalidArgument);
         assert_eq!(last_error(), "wall 0: segment endpoints must be finite and distinct");

@@ -53,8 +53,15 @@ class World:
         rotation: bool = False,
         moving_walls: bool = False,
     ) -> None: ...
+    def set_pass_through(self, a: str, b: str, through: bool = True) -> None: ...
     def set_interaction(
-        self, a: str, b: str, friction: float = 0.0, restitution: float = 0.0, cohesion: float = 0.0
+        self,
+        a: str,
+        b: str,
+        friction: float = 0.0,
+        restitution: float = 0.0,
+        cohesion: float = 0.0,
+        rolling_resistance: float = 0.0,
     ) -> None: ...
     def add_disk(
         self,

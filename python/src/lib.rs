@@ -252,6 +252,13 @@ impl World {
         moreau::World::in_code(materials, law, gravity.map(vec2), rotation, moving_walls).map(Self).map_err(error)
     }
 
+    /// Makes the bodies and walls of materials `a` and `b` pass through each other
+    /// (`through`), or touch again: a scene's `[[interaction]] pass_through`.
+    #[pyo3(signature = (a, b, through = true))]
+    fn set_pass_through(&mut self, a: &str, b: &str, through: bool) -> PyResult<()> {
+        self.0.set_pass_through(a, b, through).map_err(error)
+    }
+
     /// The contact law between materials `a` and `b`.
     #[pyo3(signature = (a, b, friction = 0.0, restitution = 0.0, cohesion = 0.0, rolling_resistance = 0.0))]
     fn set_interaction(

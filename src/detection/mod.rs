@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use crate::parallel::{concat, parallel, CHUNK};
 
-use crate::world::{Bodies, Periodic, Wall};
+use crate::world::{Bodies, Materials, Periodic, Wall};
 
 /// What body `i` touches.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -73,6 +73,9 @@ pub struct Configuration<'a> {
     pub angle: &'a [f64],
     /// A periodic cell along x: pairs are also sought through its boundary.
     pub periodic: Option<Periodic>,
+    /// The materials, when some pairs of them pass through each other: their contacts are
+    /// dropped ([`Materials::set_pass_through`]).
+    pub pass_through: Option<&'a Materials>,
 }
 
 impl Configuration<'_> {
@@ -235,6 +238,15 @@ impl Detector {
             }
             out.sort_by_key(DetectedContact::key);
         }
+        if let Some(materials) = config.pass_through {
+            out.retain(|c| {
+                let other = match c.other {
+                    Antagonist::Body(j) => bodies.material[j] as usize,
+                    Antagonist::Wall(w) => walls[w].material,
+                };
+                !materials.pass_through(bodies.material[c.i] as usize, other)
+            });
+        }
         if !bodies.held.is_empty() {
             // Bodies held along an axis can meet where neither moves along the normal (two
             // plates sliding in step): no impulse acts there, as between two fixed bodies.
@@ -329,7 +341,7 @@ mod tests {
             }
             let grown = if call == 25 { 1.5 * skin } else { 0.0 };
             let reach: Vec<f64> = (0..position.len()).map(|_| grown + rng.gen_range(0.0..0.001)).collect();
-            let config = Configuration { position: &position, angle: &angle, periodic: None };
+            let config = Configuration { position: &position, angle: &angle, periodic: None, pass_through: None };
             let found = kept.detect(&bodies, &config, &walls, alert, &reach, &[0.0]);
             let fresh = Detector::default().detect(&bodies, &config, &walls, alert, &reach, &[0.0]);
             assert_eq!(found, fresh, "call {call}");
@@ -363,7 +375,8 @@ mod tests {
             Wall::segment(DVec2::new(60.0, 0.0), DVec2::new(60.0, 60.0), 0),
         ];
         let (alert, reach) = (0.05, vec![0.0; n]);
-        let config = Configuration { position: &bodies.position, angle: &bodies.angle, periodic: None };
+        let config =
+            Configuration { position: &bodies.position, angle: &bodies.angle, periodic: None, pass_through: None };
         let mut expected = Vec::new();
         for i in 0..n {
             for j in i + 1..n {

@@ -239,7 +239,8 @@ mod tests {
         let sq = vec![DVec2::new(-0.5, -0.5), DVec2::new(0.5, -0.5), DVec2::new(0.5, 0.5), DVec2::new(-0.5, 0.5)];
         bodies.add(&BodySpec::polygon(DVec2::new(100.0, 0.49), sq, 0), 1.0).unwrap();
         let wall = Wall::segment(DVec2::new(90.0, 0.0), DVec2::new(110.0, 0.0), 0);
-        let config = Configuration { position: &bodies.position, angle: &bodies.angle, periodic: None };
+        let config =
+            Configuration { position: &bodies.position, angle: &bodies.angle, periodic: None, pass_through: None };
         let mut out = Vec::new();
         body_wall(&bodies, &config, 0, 0, &wall, 0.05, &mut out);
         assert_eq!(out.len(), 2, "{out:?}");

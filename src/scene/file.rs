@@ -162,6 +162,7 @@ struct PairSpec {
     restitution: Option<f64>,
     cohesion: Option<f64>,
     rolling_resistance: Option<f64>,
+    pass_through: Option<bool>,
 }
 
 #[derive(Deserialize)]
@@ -434,6 +435,7 @@ impl Builder<'_> {
             let b =
                 self.material_index(&Some(spec.materials[1].clone()), p.span(), format!("interaction[{k}].materials"))?;
             materials.set(a, b, law);
+            materials.set_pass_through(a, b, spec.pass_through.unwrap_or(false));
         }
         for (on, name, max) in [
             (effects.friction, "friction", materials.max_friction()),

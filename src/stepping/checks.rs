@@ -114,7 +114,12 @@ fn start_overlaps(world: &World) -> Vec<String> {
             ));
         }
     }
-    let config = Configuration { position: &b.position, angle: &b.angle, periodic: world.periodic };
+    let config = Configuration {
+        position: &b.position,
+        angle: &b.angle,
+        periodic: world.periodic,
+        pass_through: world.materials.any_pass_through().then_some(&world.materials),
+    };
     let contacts = Detector::default().detect(b, &config, &world.walls, 0.0, &[], &[]);
     let (mut in_wall, mut coincident, mut overlapping) = (Vec::new(), Vec::new(), Vec::new());
     for c in &contacts {

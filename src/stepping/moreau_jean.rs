@@ -118,7 +118,12 @@ fn detect(
     (reach, wall_reach): (&[f64], &[f64]),
 ) -> Vec<DetectedContact> {
     let b = &world.bodies;
-    let config = Configuration { position: &b.position, angle: &b.angle, periodic: world.periodic };
+    let config = Configuration {
+        position: &b.position,
+        angle: &b.angle,
+        periodic: world.periodic,
+        pass_through: world.materials.any_pass_through().then_some(&world.materials),
+    };
     let mut detected = detector.detect(b, &config, &world.walls, alert, reach, wall_reach);
     detected.retain(|c| match c.other {
         Antagonist::Body(j) => b.inv_mass[c.i] > 0.0 || b.inv_mass[j] > 0.0,

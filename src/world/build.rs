@@ -124,6 +124,14 @@ impl World {
         Ok(())
     }
 
+    /// Makes the bodies and walls of materials `a` and `b` pass through each other (`through`),
+    /// or touch again: a scene's `[[interaction]] pass_through = true`.
+    pub fn set_pass_through(&mut self, a: &str, b: &str, through: bool) -> Result<(), WorldError> {
+        let (a, b) = (self.material_named(a)?, self.material_named(b)?);
+        self.materials.set_pass_through(a, b, through);
+        Ok(())
+    }
+
     fn set_law(&mut self, a: usize, b: usize, law: Interaction) {
         self.switch_on(law);
         self.materials.set(a, b, law);

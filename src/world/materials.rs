@@ -21,13 +21,15 @@ pub struct Materials {
     /// Densities (kg/m² in 2D).
     pub density: Vec<f64>,
     table: Vec<Interaction>,
+    /// Pairs of materials whose bodies pass through each other (n × n; empty while none do).
+    passing: Vec<bool>,
 }
 
 impl Materials {
     /// Materials with one default interaction for every pair.
     pub fn new(names: Vec<String>, density: Vec<f64>, default: Interaction) -> Self {
         let n = names.len();
-        Self { names, density, table: vec![default; n * n] }
+        Self { names, density, table: vec![default; n * n], passing: Vec::new() }
     }
 
     /// Number of materials.
@@ -56,6 +58,32 @@ impl Materials {
     #[inline]
     pub fn interaction(&self, a: usize, b: usize) -> Interaction {
         self.table[a * self.len() + b]
+    }
+
+    /// Makes the bodies (and walls) of materials `a` and `b` pass through each other, or touch
+    /// again: no contact is detected between them (LMGC90's visibility table), as for the plates
+    /// of a biaxial box that cross at its corners.
+    pub fn set_pass_through(&mut self, a: usize, b: usize, through: bool) {
+        let n = self.len();
+        if self.passing.is_empty() {
+            if !through {
+                return;
+            }
+            self.passing = vec![false; n * n];
+        }
+        self.passing[a * n + b] = through;
+        self.passing[b * n + a] = through;
+    }
+
+    /// Whether the bodies of materials `a` and `b` pass through each other.
+    #[inline]
+    pub fn pass_through(&self, a: usize, b: usize) -> bool {
+        !self.passing.is_empty() && self.passing[a * self.len() + b]
+    }
+
+    /// Whether some pair of materials passes through each other.
+    pub fn any_pass_through(&self) -> bool {
+        self.passing.contains(&true)
     }
 
     /// Largest friction coefficient of any pair (to tell whether friction could matter).
