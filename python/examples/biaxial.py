@@ -8,7 +8,7 @@ neither tilts or drifts. The steel parts pass through each other (`set_pass_thro
 cross at the corners. Prints, per saved step, the axial strain, the volumetric strain, the
 stresses and the mobilised friction sin(phi) = (sigma1 - sigma3) / (sigma1 + sigma3).
 
-    python python/examples/biaxial.py [--grains 400] [--steps 1500] [--csv biaxial.csv]
+    python python/examples/biaxial.py [--grains 400] [--steps 1000] [--tol 1e-3] [--csv biaxial.csv]
 """
 
 import argparse
@@ -21,9 +21,10 @@ import moreau
 THICKNESS = 0.01  # plates' thickness (m)
 
 
-def build(grains, mu, seed):
-    """The sample on a loose lattice, the walls and the two pistons; returns the simulation, the
-    grains' area and the pistons' indices (right, top)."""
+def build(grains, mu, seed, tol):
+    """The sample on a loose lattice, the walls and the two pistons; returns the simulation
+    (every contact solved to `tol` times the step's largest free velocity), the grains' area,
+    their mean diameter and the pistons' indices (right, top)."""
     rng = np.random.default_rng(seed)
     side = int(np.ceil(np.sqrt(grains)))
     r_max, spacing = 1.2e-3, 2.5e-3
@@ -43,8 +44,8 @@ def build(grains, mu, seed):
                               mass=mass, hold_velocity=("y",))
     top = world.add_polygon((1.5 * width, height + t), plate(1.5 * width, t), "steel", lock_rotation=True,
                             mass=mass, hold_velocity=("x",))
-    sim = moreau.Simulation(world, h=2e-4, tol=1e-4, criterion="velocity", anderson=5)
-    return sim, np.pi * np.sum(radii**2), right, top
+    sim = moreau.Simulation(world, h=2e-4, tol=tol, criterion="velocity", anderson=5)
+    return sim, np.pi * np.sum(radii**2), 2 * radii.mean(), right, top
 
 
 def sample_size(sim, right, top):
@@ -54,11 +55,11 @@ def sample_size(sim, right, top):
     return p[right, 0] - THICKNESS / 2, p[top, 1] - THICKNESS / 2
 
 
-def run(grains=400, steps=1500, sigma3=1e4, speed=0.01, mu=0.5, seed=1, every=50, out=None):
+def run(grains=400, steps=1000, sigma3=1e4, speed=0.01, mu=0.5, seed=1, every=50, tol=1e-3, out=None):
     """Isotropic compression to sigma3 (N/m) until the sample's size and the pistons' loads hold
     still, then shear at `speed` (m/s) for `steps` steps; returns the saved rows (dicts): the
     first is the isotropic state, the others every `every` steps of the shear."""
-    sim, area, right, top = build(grains, mu, seed)
+    sim, area, diameter, right, top = build(grains, mu, seed, tol)
     sizes = []
     for k in range(20000):
         w, h = sample_size(sim, right, top)
@@ -75,7 +76,7 @@ def run(grains=400, steps=1500, sigma3=1e4, speed=0.01, mu=0.5, seed=1, every=50
             break
     w0, h0 = sample_size(sim, right, top)
     loads = sim.body_loads()["force"]
-    rows = [row(0, 0.0, 0.0, loads[top, 1] / w0, loads[right, 0] / h0, area / (w0 * h0))]
+    rows = [row(0, 0.0, 0.0, loads[top, 1] / w0, loads[right, 0] / h0, area / (w0 * h0), 0.0)]
     # Shear: the top piston replaced by a plate of the same shape driven down at `speed` (a fixed
     # body: it moves at its velocity whatever the grains do); the right piston keeps sigma3.
     centre = tuple(sim.positions[top])
@@ -83,15 +84,19 @@ def run(grains=400, steps=1500, sigma3=1e4, speed=0.01, mu=0.5, seed=1, every=50
     sim.remove_body(top)
     top = sim.add_polygon(centre, [(-half_w, -t), (half_w, -t), (half_w, t), (-half_w, t)], "steel", fixed=True,
                           velocity=(0.0, -speed))
-    unconverged = 0
+    unconverged, overlap = 0, 0.0
     for k in range(1, steps + 1):
         w, h = sample_size(sim, right, top)
         sim.apply_force(right, (-sigma3 * h, 0.0))
-        unconverged += not sim.step()["converged"]
+        report = sim.step()
+        unconverged += not report["converged"]
+        overlap = max(overlap, report["max_penetration"] / diameter)
         if k % every == 0:
             w, h = sample_size(sim, right, top)
             loads = sim.body_loads()["force"]
-            rows.append(row(k, 1 - h / h0, 1 - w * h / (w0 * h0), loads[top, 1] / w, loads[right, 0] / h, area / (w * h)))
+            strains = (1 - h / h0, 1 - w * h / (w0 * h0))
+            rows.append(row(k, *strains, loads[top, 1] / w, loads[right, 0] / h, area / (w * h), overlap))
+            overlap = 0.0
     if unconverged:
         print(f"{unconverged} of {steps} shear steps did not converge")
     if out:
@@ -102,8 +107,9 @@ def run(grains=400, steps=1500, sigma3=1e4, speed=0.01, mu=0.5, seed=1, every=50
     return rows
 
 
-def row(step, axial, volumetric, sigma1, sigma3, packing):
-    """A saved state: strains (compression positive), stresses (N/m), sin(phi), packing fraction."""
+def row(step, axial, volumetric, sigma1, sigma3, packing, overlap):
+    """A saved state: strains (compression positive), stresses (N/m), sin(phi), packing fraction,
+    and the largest overlap of the steps since the last row over the mean diameter."""
     return {
         "step": step,
         "axial_strain": axial,
@@ -112,21 +118,24 @@ def row(step, axial, volumetric, sigma1, sigma3, packing):
         "sigma3": sigma3,
         "sin_phi": (sigma1 - sigma3) / (sigma1 + sigma3),
         "packing_fraction": packing,
+        "max_overlap": overlap,
     }
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--grains", type=int, default=400)
-    parser.add_argument("--steps", type=int, default=1500)
+    parser.add_argument("--steps", type=int, default=1000)
+    parser.add_argument("--tol", type=float, default=1e-3,
+                        help="every contact within tol times the step's largest free velocity")
     parser.add_argument("--csv", help="write the saved rows here")
     args = parser.parse_args()
-    rows = run(args.grains, args.steps, out=args.csv)
-    print("| axial strain | volumetric strain | sigma1 (N/m) | sigma3 (N/m) | sin phi | packing |")
-    print("|---|---|---|---|---|---|")
+    rows = run(args.grains, args.steps, tol=args.tol, out=args.csv)
+    print("| axial strain | volumetric strain | sigma1 (N/m) | sigma3 (N/m) | sin phi | packing | max overlap / d |")
+    print("|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['axial_strain']:.4f} | {r['volumetric_strain']:+.4f} | {r['sigma1']:.0f} | {r['sigma3']:.0f} "
-              f"| {r['sin_phi']:.3f} | {r['packing_fraction']:.3f} |")
+              f"| {r['sin_phi']:.3f} | {r['packing_fraction']:.3f} | {r['max_overlap']:.1e} |")
 
 
 if __name__ == "__main__":
