@@ -23,9 +23,6 @@ pub enum GpuError {
     /// A solver the GPU path lacks.
     #[error("the GPU path has no {0} solver yet (it has: nlgs, cpg, pcpg, jacobi, apgd)")]
     Unsupported(String),
-    /// A problem the GPU path cannot take, and why.
-    #[error("{0}")]
-    Refused(String),
     /// A failure while running.
     #[error("GPU: {0}")]
     Runtime(String),
