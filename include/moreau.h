@@ -361,7 +361,7 @@ enum MoreauStatus moreau_world_add_disk(struct MoreauWorld *world,
                                         const struct MoreauMotion *motion,
                                         size_t *body);
 
-// Adds a convex polygon of `count` vertices `(x0, y0, x1, …)` relative to its centre (`x`, `y`),
+// Adds a polygon (convex, or a concave outline) of `count` vertices `(x0, y0, x1, …)` relative to its centre (`x`, `y`),
 // turned by `angle` (rad), moving as `motion` says (NULL: at rest); `body` (may be NULL) gets its
 // index.
 enum MoreauStatus moreau_world_add_polygon(struct MoreauWorld *world,
@@ -399,7 +399,7 @@ enum MoreauStatus moreau_world_add_wall(struct MoreauWorld *world,
                                         double vy,
                                         size_t *wall);
 
-// Adds a solid convex wall polygon of `count` world vertices `(x0, y0, x1, …)` (either
+// Adds a solid wall polygon (convex or concave) of `count` world vertices `(x0, y0, x1, …)` (either
 // orientation), moving at (`vx`, `vy`) and turning at `spin` about its centroid (motion needs
 // the setting `moving_walls`); `wall` (may be NULL) gets its index.
 enum MoreauStatus moreau_world_add_polygon_wall(struct MoreauWorld *world,

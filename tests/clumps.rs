@@ -183,7 +183,7 @@ fn bad_clumps_are_refused_by_name() {
         "{head}[[generate]]\nkind = \"grid\"\ncount = 4\nradius = [0.1, 0.1]\nregion = {{ min = [0.0, 0.0], max = [1.0, 1.0] }}\n\
          sides = 5\nclump = [[0.0, 0.0, 1.0], [1.0, 0.0, 1.0]]\n"
     ));
-    assert!(e.contains("generate[0].clump") && e.contains("not both"), "{e}");
+    assert!(e.contains("generate[0].clump") && e.contains("only one of sides, clump and polygon"), "{e}");
     let e = parse_error(&format!(
         "{head}[[generate]]\nkind = \"grid\"\ncount = 4\nradius = [0.1, 0.1]\nregion = {{ min = [0.0, 0.0], max = [1.0, 1.0] }}\n\
          clump = [[0.0, 0.0, -1.0]]\n"

@@ -759,7 +759,7 @@ pub extern "C" fn moreau_world_add_disk(
     guard(|| add_body(world, spec, material, 0.0, motion, body))
 }
 
-/// Adds a convex polygon of `count` vertices `(x0, y0, x1, …)` relative to its centre (`x`, `y`),
+/// Adds a polygon (convex, or a concave outline) of `count` vertices `(x0, y0, x1, …)` relative to its centre (`x`, `y`),
 /// turned by `angle` (rad), moving as `motion` says (NULL: at rest); `body` (may be NULL) gets its
 /// index.
 #[no_mangle]
@@ -832,7 +832,7 @@ pub extern "C" fn moreau_world_add_wall(
     })
 }
 
-/// Adds a solid convex wall polygon of `count` world vertices `(x0, y0, x1, …)` (either
+/// Adds a solid wall polygon (convex or concave) of `count` world vertices `(x0, y0, x1, …)` (either
 /// orientation), moving at (`vx`, `vy`) and turning at `spin` about its centroid (motion needs
 /// the setting `moving_walls`); `wall` (may be NULL) gets its index.
 #[no_mangle]

@@ -451,8 +451,8 @@ class Simulation:
     def add_polygon(self, center: Sequence[float], vertices: Sequence[Sequence[float]], material: str,
                     angle: float = 0.0, velocity: Sequence[float] = (0.0, 0.0), spin: float = 0.0,
                     fixed: bool = False, tag: int = 0, **drive: Any) -> int:
-        """Adds a convex polygon between steps (vertices relative to ``center``, in either
-        order); returns its index. ``drive`` as ``add_disk``'s."""
+        """Adds a polygon between steps (vertices relative to ``center``: convex in any order, or a
+        concave outline in either direction); returns its index. ``drive`` as ``add_disk``'s."""
         return self._inner.add_polygon(tuple(center), [tuple(v) for v in vertices], material, angle,
                                        tuple(velocity), spin, fixed, tag, **drive)
 

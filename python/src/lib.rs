@@ -308,7 +308,8 @@ impl World {
         self.add(&spec)
     }
 
-    /// Adds a convex polygon (vertices relative to `center`); returns its index.
+    /// Adds a polygon (vertices relative to `center`: convex in any order, or a concave outline in
+    /// either direction); returns its index.
     #[pyo3(signature = (center, vertices, material, angle = 0.0, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0, *, force = (0.0, 0.0), lock_rotation = false, mass = None, hold_velocity = Vec::new()))]
     #[allow(clippy::too_many_arguments)]
     fn add_polygon(
@@ -374,7 +375,7 @@ impl World {
         self.0.add_wall(wall).map_err(error)
     }
 
-    /// Adds a solid convex wall polygon of world `vertices` (either orientation), moving at
+    /// Adds a solid wall polygon of world `vertices` (convex, or a concave outline), moving at
     /// `velocity` and turning at `spin` about its centroid (with the effect moving_walls).
     #[pyo3(signature = (vertices, material, velocity = (0.0, 0.0), spin = 0.0))]
     fn add_polygon_wall(
@@ -721,7 +722,7 @@ impl Simulation {
         self.0.add_body(&spec).map_err(error)
     }
 
-    /// Adds a convex polygon between steps (vertices relative to `center`), checked as
+    /// Adds a polygon between steps (vertices relative to `center`; convex or concave), checked as
     /// `World.add_polygon`'s; returns its index.
     #[pyo3(signature = (center, vertices, material, angle = 0.0, velocity = (0.0, 0.0), spin = 0.0, fixed = false, tag = 0, *, force = (0.0, 0.0), lock_rotation = false, mass = None, hold_velocity = Vec::new()))]
     #[allow(clippy::too_many_arguments)]

@@ -521,6 +521,22 @@ def test_a_clump_from_python_topples_and_lies_on_both_disks_with_its_centre_fall
         sim.add_clump((1.0, 1.0), [(0.0, 0.0, 0.1), (0.5, 0.0, 0.1)], "rubber")
 
 
+def test_a_concave_cup_from_python_holds_a_disk_in_its_notch_and_a_crossed_outline_is_refused():
+    # A 2 x 1 cup with a 1.6 x 0.8 notch on a floor: the disk rests on the notch's bottom
+    # (y = 0.2 + r), where the cup's convex hull would hold it at y = 1 + r.
+    world = moreau.World([("wood", 1000.0)], friction=0.5, gravity=(0.0, -9.81), rotation=True)
+    world.add_wall((-3.0, 0.0), (3.0, 0.0), "wood")
+    cup = [(-1.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.8, 1.0), (0.8, 0.2), (-0.8, 0.2), (-0.8, 1.0), (-1.0, 1.0)]
+    world.add_polygon((0.0, 0.0), cup, "wood")
+    disk = world.add_disk((0.05, 0.8), 0.3, "wood")
+    sim = moreau.Simulation(world, h=1e-3, tol=1e-8)
+    for _ in range(500):
+        assert sim.step()["converged"]
+    assert abs(sim.positions[disk, 1] - 0.5) < 1e-6
+    with pytest.raises(moreau.MoreauError, match="cross or touch"):
+        sim.add_polygon((3.0, 3.0), [(0.0, 0.0), (1.0, 1.0), (1.0, 0.0), (0.0, 1.0)], "wood")
+
+
 def test_a_shuffled_packing_read_from_python_is_numbered_in_rows_and_each_row_finds_its_body(tmp_path):
     # 40 x 10 disks touching on a square lattice, written shuffled.
     rows = [(0.05 + 0.1 * j, 0.05 + 0.1 * i) for i in range(10) for j in range(40)]

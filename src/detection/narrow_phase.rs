@@ -1,13 +1,15 @@
 //! Exact narrow phase, in f64: disk–disk, disk–segment and disk–polygon closed-form (a clump's
 //! disks each as a disk, a contact per pair of disks that touch), polygon–polygon and
-//! polygon–segment by SAT and clipping. Disk–polygon is not parry2d's f32 query: its normals,
+//! polygon–segment by SAT and clipping; a concave polygon by its outline's corners and edges
+//! ([`super::outline`]). Disk–polygon is not parry2d's f32 query: its normals,
 //! 1e-7 rad off, tilted a clump's two supports on one face against each other, and NLGS cycled.
 
 use glam::DVec2;
 
+use super::outline::{outline_outline, Outline};
 use super::polygon_clip::polygon_polygon;
 use super::{Antagonist, Configuration, DetectedContact};
-use crate::world::{Bodies, BodyShape, Wall, WallShape};
+use crate::world::{Bodies, BodyShape, PolygonShape, Wall, WallShape};
 
 /// Gap, normal (from `b` to `a`) and mid-gap point of two disks.
 #[inline]
@@ -61,6 +63,33 @@ fn disk_polygon(x: DVec2, r: f64, local: &[DVec2], xp: DVec2, ap: f64, alert: f6
     (gap <= alert).then_some((point, normal, gap))
 }
 
+/// Every contact of a disk (centre `x`, radius `r`) with a polygon posed at `pose` (position,
+/// angle), passed to `emit` as (feature, mid-gap point, normal from the polygon to the disk, gap):
+/// a convex polygon's one ([`disk_polygon`], feature 0), or each that a concave one's outline
+/// (`outline`, in the world frame) makes, by edge or corner.
+fn disk_against(
+    x: DVec2,
+    r: f64,
+    polygon: &PolygonShape,
+    outline: Option<&[DVec2]>,
+    (xp, ap): (DVec2, f64),
+    alert: f64,
+    mut emit: impl FnMut(usize, DVec2, DVec2, f64),
+) {
+    let Some(points) = outline else {
+        if let Some((point, normal, gap)) = disk_polygon(x, r, &polygon.vertices, xp, ap, alert) {
+            emit(0, point, normal, gap);
+        }
+        return;
+    };
+    let mut meetings = Vec::new();
+    Outline { points, corners: &polygon.corners }.meetings(x, alert + r, &mut meetings);
+    for m in meetings {
+        let gap = m.gap - r;
+        emit(m.feature as usize, m.at + 0.5 * gap * m.normal, m.normal, gap);
+    }
+}
+
 /// Contacts between bodies `i < j`, body `j` taken at its position plus `image` (a periodic
 /// image; zero for a direct pair).
 pub fn body_body(
@@ -82,29 +111,50 @@ pub fn body_body(
             }
         }
         _ if bodies.inv_mass[i] == 0.0 && bodies.inv_mass[j] == 0.0 => {}
-        (BodyShape::Polygon(_), BodyShape::Polygon(_)) => {
+        (BodyShape::Polygon(p), BodyShape::Polygon(q)) => {
             let mut pts = Vec::new();
             let b: Vec<DVec2> = world_vertices(bodies, config, j).into_iter().map(|v| v + image).collect();
             let a = world_vertices(bodies, config, i);
-            polygon_polygon(&a, &b, alert, &mut pts);
+            let (p, q) = (&bodies.polygons[p as usize], &bodies.polygons[q as usize]);
+            if p.is_concave() || q.is_concave() {
+                let (a, b) = (Outline { points: &a, corners: &p.corners }, Outline { points: &b, corners: &q.corners });
+                outline_outline(a, b, alert, &mut pts);
+            } else {
+                polygon_polygon(&a, &b, alert, &mut pts);
+            }
             for c in pts {
                 push(out, c.feature, c.point, c.normal, c.gap);
             }
         }
         (BodyShape::Polygon(p), _) => {
-            let polygon = &bodies.polygons[p as usize].vertices;
+            let polygon = &bodies.polygons[p as usize];
+            let outline = polygon.is_concave().then(|| world_vertices(bodies, config, i));
             for (b, (x, radius)) in round_pieces(bodies, config, j, image).enumerate() {
-                if let Some((point, normal, gap)) = disk_polygon(x, radius, polygon, xi, config.angle_of(i), alert) {
-                    push(out, piece_pair(0, b), point, -normal, gap);
-                }
+                disk_against(
+                    x,
+                    radius,
+                    polygon,
+                    outline.as_deref(),
+                    (xi, config.angle_of(i)),
+                    alert,
+                    |f, point, n, gap| push(out, piece_pair(f, b), point, -n, gap),
+                );
             }
         }
         (_, BodyShape::Polygon(p)) => {
-            let polygon = &bodies.polygons[p as usize].vertices;
+            let polygon = &bodies.polygons[p as usize];
+            let outline = polygon.is_concave().then(|| world_vertices(bodies, config, j));
+            let outline: Option<Vec<DVec2>> = outline.map(|o| o.into_iter().map(|v| v + image).collect());
             for (a, (x, radius)) in round_pieces(bodies, config, i, DVec2::ZERO).enumerate() {
-                if let Some((point, normal, gap)) = disk_polygon(x, radius, polygon, xj, config.angle_of(j), alert) {
-                    push(out, piece_pair(a, 0), point, normal, gap);
-                }
+                disk_against(
+                    x,
+                    radius,
+                    polygon,
+                    outline.as_deref(),
+                    (xj, config.angle_of(j)),
+                    alert,
+                    |f, point, n, gap| push(out, piece_pair(a, f), point, n, gap),
+                );
             }
         }
         // Disks and clumps: every disk of one against every disk of the other.
@@ -178,10 +228,10 @@ pub fn body_wall(
             }
         }
         WallShape::Polygon(poly) => {
-            if let Some((point, normal, gap)) = disk_polygon(x, radius, &poly.vertices, wall.center, wall.angle, alert)
-            {
-                push(out, a as u64, point, normal, gap);
-            }
+            let outline = poly.is_concave().then(|| wall.world_points());
+            disk_against(x, radius, poly, outline.as_deref(), (wall.center, wall.angle), alert, |f, point, n, gap| {
+                push(out, a as u64 | (f as u64) << 32, point, n, gap)
+            });
         }
     };
     match (bodies.shape[k], &wall.shape) {
@@ -191,9 +241,21 @@ pub fn body_wall(
                 round(out, a, x, radius);
             }
         }
-        (BodyShape::Polygon(_), _) => {
+        (BodyShape::Polygon(p), shape) => {
             let mut pts = Vec::new();
-            polygon_polygon(&world_vertices(bodies, config, k), &wall.world_points(), alert, &mut pts);
+            let (a, b) = (world_vertices(bodies, config, k), wall.world_points());
+            let polygon = &bodies.polygons[p as usize];
+            let theirs: &[bool] = match shape {
+                WallShape::Polygon(poly) => &poly.corners,
+                WallShape::Segment { .. } => &[],
+            };
+            if polygon.is_concave() || !theirs.is_empty() {
+                let (a, b) =
+                    (Outline { points: &a, corners: &polygon.corners }, Outline { points: &b, corners: theirs });
+                outline_outline(a, b, alert, &mut pts);
+            } else {
+                polygon_polygon(&a, &b, alert, &mut pts);
+            }
             for c in pts {
                 push(out, c.feature, c.point, c.normal, c.gap);
             }

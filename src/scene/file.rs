@@ -281,6 +281,9 @@ struct GenerateSpec {
     /// Clump grains shaped as these disks (`[x, y, r]` each), scaled so that the clump's
     /// bounding radius is the grain's radius, turned at random.
     clump: Option<Vec<Exact<f64, 3>>>,
+    /// Polygon grains shaped as this outline (`[x, y]` each; concave or not), scaled so that
+    /// its bounding radius about its centroid is the grain's radius, turned at random.
+    polygon: Option<Vec<P>>,
     material: Option<String>,
     /// Materials given to successive layers (with `layers`).
     materials: Option<Vec<String>>,
@@ -659,9 +662,24 @@ impl Builder<'_> {
             };
             let layers = spec.layers.unwrap_or(1).max(1);
             let seed = spec.seed.unwrap_or(k as u64);
+            let shapes = [spec.sides.is_some(), spec.clump.is_some(), spec.polygon.is_some()];
+            if shapes.iter().filter(|&&s| s).count() > 1 {
+                let second = if spec.polygon.is_some() { "polygon" } else { "clump" };
+                return self.cx.err(g.span(), field(second), "give only one of sides, clump and polygon");
+            }
+            let outline = match (&spec.polygon, spec.kind) {
+                (None, _) => None,
+                (Some(_), GenerateKind::Grid) => {
+                    let vertices: Vec<DVec2> = spec.polygon.iter().flatten().map(|p| v(*p)).collect();
+                    Some(
+                        crate::world::unit_polygon(&vertices)
+                            .or_else(|m| self.cx.err(g.span(), field("polygon"), m))?,
+                    )
+                }
+                (Some(_), _) => return self.cx.err(g.span(), field("polygon"), "polygon grains need kind = \"grid\""),
+            };
             let template = match (&spec.clump, spec.sides, spec.kind) {
-                (None, _, _) => None,
-                (Some(_), Some(_), _) => return self.cx.err(g.span(), field("clump"), "give sides or clump, not both"),
+                (None, _, _) | (Some(_), Some(_), _) => None,
                 (Some(_), _, GenerateKind::Pyramid) => {
                     return self.cx.err(
                         g.span(),
@@ -692,6 +710,13 @@ impl Builder<'_> {
                         let mut clump = BodySpec::clump(*c, disks, material);
                         clump.angle = rng_angle.gen_range(0.0..std::f64::consts::TAU);
                         clump
+                    }
+                    None if outline.is_some() => {
+                        use rand::Rng;
+                        let vertices = outline.iter().flatten().map(|p| *p * *r).collect();
+                        let mut polygon = BodySpec::polygon(*c, vertices, material);
+                        polygon.angle = rng_angle.gen_range(0.0..std::f64::consts::TAU);
+                        polygon
                     }
                     None => BodySpec::disk(*c, *r, material),
                     Some(s) if (3..=MAX_POLYGON_SIDES).contains(&s) => {

@@ -4,15 +4,29 @@ use glam::DVec2;
 use parry2d::shape::ConvexPolygon;
 
 use super::clump::{disk_union, ClumpShape};
+use super::concave::{convex_corners, simple_outline};
 
-/// A convex polygon in its body frame (centroid at the origin, counter-clockwise), with the
-/// f32 parry2d copy used by the narrow phase.
+/// A polygon in its body frame (centroid at the origin, counter-clockwise), convex or not.
 #[derive(Clone, Debug)]
 pub struct PolygonShape {
-    /// Vertices in the body frame, counter-clockwise, centred on the centroid.
+    /// The outline's vertices in the body frame, counter-clockwise, centred on the centroid.
     pub vertices: Vec<DVec2>,
-    /// The same polygon for parry2d's queries (f32).
-    pub parry: ConvexPolygon,
+    /// For a concave polygon, which vertices are convex corners (the others are the reflex
+    /// corners of its notches); empty for a convex one.
+    pub corners: Vec<bool>,
+}
+
+impl PolygonShape {
+    /// A polygon of counter-clockwise `vertices`, its corners found when it is concave.
+    pub(crate) fn new(vertices: Vec<DVec2>, convex: bool) -> Self {
+        let corners = if convex { Vec::new() } else { convex_corners(&vertices) };
+        Self { vertices, corners }
+    }
+
+    /// Whether the polygon has a notch (its contacts are then read from its outline).
+    pub fn is_concave(&self) -> bool {
+        !self.corners.is_empty()
+    }
 }
 
 /// A body's shape in its own frame.
@@ -72,7 +86,9 @@ pub enum SpecShape {
         /// Its radius (m).
         radius: f64,
     },
-    /// Vertices relative to `center`, any order (their convex hull is used).
+    /// Vertices relative to `center`: a convex polygon's in any order (their convex hull is
+    /// used), a concave one's around its outline in either direction (the outline must not cross
+    /// or touch itself).
     Polygon {
         /// Vertices relative to the given centre (recentred on the centroid when added).
         vertices: Vec<DVec2>,
@@ -115,7 +131,7 @@ impl BodySpec {
         Ok(())
     }
 
-    /// A convex polygon, vertices relative to `center`, at rest.
+    /// A polygon, vertices relative to `center` (convex, or a concave outline), at rest.
     pub fn polygon(center: DVec2, vertices: Vec<DVec2>, material: usize) -> Self {
         Self { shape: SpecShape::Polygon { vertices }, ..Self::disk(center, 0.0, material) }
     }
@@ -256,7 +272,7 @@ impl Bodies {
     }
 
     /// Adds a body of the given density; returns its index or says what is wrong with it
-    /// (a polygon must be convex, its vertices in either order).
+    /// (a polygon's outline must not cross itself).
     pub fn add(&mut self, spec: &BodySpec, density: f64) -> Result<usize, String> {
         let finite = |v: DVec2| v.x.is_finite() && v.y.is_finite();
         let state = [
@@ -319,22 +335,24 @@ impl Bodies {
                         "degenerate polygon: its vertices lie within {span:e} m of each other (at least {needed:e} m needed)"
                     ));
                 }
-                check_convex(vertices)?;
-                let pts: Vec<_> = vertices.iter().map(|v| parry2d::math::Vector::new(v.x as f32, v.y as f32)).collect();
-                let hull = ConvexPolygon::from_convex_hull(&pts).ok_or_else(|| {
-                    "degenerate polygon: its vertices have no convex hull of positive area".to_string()
-                })?;
-                let ccw: Vec<DVec2> = hull.points().iter().map(|p| DVec2::new(p.x as f64, p.y as f64)).collect();
+                let convex = check_convex(vertices).is_ok();
+                let ccw = if convex {
+                    let pts: Vec<_> =
+                        vertices.iter().map(|v| parry2d::math::Vector::new(v.x as f32, v.y as f32)).collect();
+                    let hull = ConvexPolygon::from_convex_hull(&pts).ok_or_else(|| {
+                        "degenerate polygon: its vertices have no convex hull of positive area".to_string()
+                    })?;
+                    hull.points().iter().map(|p| DVec2::new(p.x as f64, p.y as f64)).collect()
+                } else {
+                    simple_outline(vertices)?
+                };
                 let (area, centroid, polar) = polygon_area_properties(&ccw);
                 let size = ccw.iter().map(|v| (*v - centroid).length()).fold(0.0, f64::max);
                 if area.is_nan() || area <= 1e-12 * size * size || ccw.len() < 3 {
                     return Err(format!("degenerate polygon: area {area:e} is zero for its size {size:e}"));
                 }
                 let local: Vec<DVec2> = ccw.iter().map(|v| *v - centroid).collect();
-                let pts: Vec<_> = local.iter().map(|v| parry2d::math::Vector::new(v.x as f32, v.y as f32)).collect();
-                let parry = ConvexPolygon::from_convex_polyline(pts)
-                    .ok_or_else(|| "degenerate polygon after centring".to_string())?;
-                self.polygons.push(PolygonShape { vertices: local, parry });
+                self.polygons.push(PolygonShape::new(local, convex));
                 let c = spec.center + DVec2::from_angle(spec.angle).rotate(centroid);
                 (BodyShape::Polygon(self.polygons.len() as u32 - 1), area, polar, size, c)
             }
@@ -372,11 +390,7 @@ impl Bodies {
         } else if let BodyShape::Polygon(p) = shape {
             // Without rotation a polygon keeps its initial orientation: bake it in.
             let rot = DVec2::from_angle(spec.angle);
-            let poly = &mut self.polygons[p as usize];
-            poly.vertices.iter_mut().for_each(|v| *v = rot.rotate(*v));
-            let pts: Vec<_> =
-                poly.vertices.iter().map(|v| parry2d::math::Vector::new(v.x as f32, v.y as f32)).collect();
-            poly.parry = ConvexPolygon::from_convex_polyline(pts).ok_or("degenerate polygon after rotation")?;
+            self.polygons[p as usize].vertices.iter_mut().for_each(|v| *v = rot.rotate(*v));
         } else if let BodyShape::Clump(c) = shape {
             let rot = DVec2::from_angle(spec.angle);
             let clump = &mut self.clumps[c as usize];
@@ -504,6 +518,16 @@ impl Bodies {
     }
 }
 
+/// A polygon's vertices moved to its centroid and scaled to a bounding radius of 1 (the
+/// template a generator scales to each grain's radius); says what is wrong with an outline
+/// [`Bodies::add`] would refuse.
+pub fn unit_polygon(vertices: &[DVec2]) -> Result<Vec<DVec2>, String> {
+    let mut probe = Bodies::new(true);
+    probe.add(&BodySpec::polygon(DVec2::ZERO, vertices.to_vec(), 0), 1.0)?;
+    let (centroid, reach) = (probe.position[0], probe.bounding_radius[0]);
+    Ok(vertices.iter().map(|v| (*v - centroid) / reach).collect())
+}
+
 /// Refuses a polygon of fewer than three vertices or with one that is not finite, naming it.
 pub(crate) fn check_vertices(vertices: &[DVec2]) -> Result<(), String> {
     if vertices.len() < 3 {
@@ -515,8 +539,8 @@ pub(crate) fn check_vertices(vertices: &[DVec2]) -> Result<(), String> {
     }
 }
 
-/// Refuses vertices that do not go once around a convex polygon, in either orientation: a
-/// concave or self-intersecting outline would otherwise be silently replaced by its hull.
+/// Whether the vertices go once around a convex polygon, in either orientation: a concave or
+/// self-intersecting outline must not be silently replaced by its hull.
 fn check_convex(vertices: &[DVec2]) -> Result<(), String> {
     let n = vertices.len();
     let (mut orientation, mut turning) = (0.0f64, 0.0f64);
@@ -532,10 +556,7 @@ fn check_convex(vertices: &[DVec2]) -> Result<(), String> {
             if orientation == 0.0 {
                 orientation = cross.signum();
             } else if cross.signum() != orientation {
-                return Err(format!(
-                    "polygon is not convex: it turns the other way at vertex {} (split a concave grain into convex ones)",
-                    (k + 1) % n
-                ));
+                return Err(format!("polygon is not convex: it turns the other way at vertex {}", (k + 1) % n));
             }
         }
     }

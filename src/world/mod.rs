@@ -1,18 +1,20 @@
-//! The simulated system: bodies (disks, convex polygons, clumps of disks), walls, materials and the effects a
+//! The simulated system: bodies (disks, polygons convex or not, clumps of disks), walls, materials and the effects a
 //! scene switches on. Stored as flat arrays (structure of arrays): per-body data that an effect
 //! needs (angles and spins for rotation, pair tables for friction…) exists only when it is on.
 
 mod bodies;
 mod build;
 mod clump;
+mod concave;
 mod effects;
 mod materials;
 mod periodic;
 mod walls;
 
-pub use bodies::{Bodies, BodyShape, BodySpec, PolygonShape, SpecShape};
+pub use bodies::{unit_polygon, Bodies, BodyShape, BodySpec, PolygonShape, SpecShape};
 pub use build::WorldError;
 pub use clump::{unit_clump, ClumpShape, MAX_CLUMP_DISKS};
+pub use concave::MAX_CONCAVE_VERTICES;
 pub use effects::{Effect, Effects};
 pub use materials::{Interaction, Materials};
 pub use periodic::Periodic;

@@ -1,4 +1,4 @@
-//! Walls: fixed or driven obstacles (segments and convex polygons) with a prescribed motion.
+//! Walls: fixed or driven obstacles (segments and polygons) with a prescribed motion.
 //! Their geometry is stored in a local frame around `center`, which moves with `velocity` and
 //! turns with `spin` (a rotating drum is a ring of segments sharing one centre).
 
@@ -19,7 +19,7 @@ pub enum WallShape {
         /// Second endpoint.
         b: DVec2,
     },
-    /// A convex polygon (solid).
+    /// A polygon (solid; convex or not).
     Polygon(PolygonShape),
 }
 
@@ -74,8 +74,8 @@ impl Wall {
         Self { shape, center, angle: 0.0, velocity: DVec2::ZERO, spin: 0.0, material }
     }
 
-    /// A solid convex polygon of world `vertices` (either orientation), its frame at `frame` or
-    /// else at the polygon's centroid.
+    /// A solid polygon of world `vertices` (a convex one's in any order, a concave outline's in
+    /// either direction), its frame at `frame` or else at the polygon's centroid.
     pub fn polygon(vertices: &[DVec2], frame: Option<DVec2>, material: usize) -> Result<Self, String> {
         super::bodies::check_vertices(vertices)?;
         let mut tmp = super::Bodies::new(true);
@@ -84,12 +84,9 @@ impl Wall {
         tmp.add(&super::BodySpec::polygon(centroid_guess, rel, 0), 1.0)?;
         let centroid = tmp.position[0];
         let c = frame.unwrap_or(centroid);
-        let shape = tmp.polygons.remove(0);
-        let local: Vec<DVec2> = shape.vertices.iter().map(|p| *p + centroid - c).collect();
-        let pts: Vec<_> = local.iter().map(|p| parry2d::math::Vector::new(p.x as f32, p.y as f32)).collect();
-        let parry = parry2d::shape::ConvexPolygon::from_convex_polyline(pts).ok_or("degenerate polygon")?;
-        let polygon = WallShape::Polygon(PolygonShape { vertices: local, parry });
-        Ok(Self::fixed(polygon, c, material))
+        let mut shape = tmp.polygons.remove(0);
+        shape.vertices.iter_mut().for_each(|p| *p = *p + centroid - c);
+        Ok(Self::fixed(WallShape::Polygon(shape), c, material))
     }
 
     /// A drum: `sides` segments on the circle of `radius` about `center`, each with its frame at
