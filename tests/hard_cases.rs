@@ -371,26 +371,7 @@ fn a_semicircular_arch_of_voussoirs_stands() {
         let (steps, tol) = if ctx.is_some() { (200, 1e-5) } else { (200, 1e-7) };
         let mut s = header(r#""gravity", "friction", "rotation""#, 1e-2, steps, "nlgs", tol, 0.6);
         s.push_str("[[material]]\nname = \"stone\"\ndensity = 2.0\n[[wall]]\nsegment = [[-5.0, 0.0], [5.0, 0.0]]\n");
-        let n = 9;
-        let (r0, r1) = (2.0f64, 2.5f64);
-        for k in 0..n {
-            let (a0, a1) =
-                (std::f64::consts::PI * k as f64 / n as f64, std::f64::consts::PI * (k + 1) as f64 / n as f64);
-            let pts = [
-                DVec2::from_angle(a0) * r0,
-                DVec2::from_angle(a0) * r1,
-                DVec2::from_angle(a1) * r1,
-                DVec2::from_angle(a1) * r0,
-            ];
-            let c = (pts[0] + pts[1] + pts[2] + pts[3]) / 4.0;
-            let rel: Vec<String> = pts.iter().map(|p| format!("[{}, {}]", p.x - c.x, p.y - c.y)).collect();
-            s.push_str(&format!(
-                "[[body]]\npolygon = {{ center = [{}, {}], vertices = [{}] }}\n",
-                c.x,
-                c.y,
-                rel.join(", ")
-            ));
-        }
+        s.push_str(&common::arch_voussoirs(false));
         let key_start = moreau::scene::parse(&s, Path::new("arch")).unwrap().world.bodies.position[4];
         let o = run("arch", &s, ctx);
         let key = o.sim.position(4);

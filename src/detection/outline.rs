@@ -1,10 +1,11 @@
 //! Contacts of concave polygons, read from their outlines (node-to-segment, as finite-element
-//! contact does): each convex corner of one body against each edge of the other, and corner
-//! against corner where neither meets an edge. A corner inside the other body meets only the
-//! nearest edge. Convex pieces cut from a concave body would not do: their inner edges give
-//! normals that push a corner sideways into a notch, and a corner moving into a notch's far side
-//! during a step is then met by no contact at its start. Here every edge a corner may reach is
-//! one, so the notch's two sides both hold it.
+//! contact does): each convex corner of one body against each edge of the other it faces, and
+//! corner against corner where neither meets an edge. A corner inside the other body meets the
+//! face it crossed and the faces still ahead of it. Blocks laid face to face, their corners
+//! coincident to roundings, meet at both ends of the joint, once each. Convex pieces cut from a
+//! concave body would not do: their inner edges give normals that push a corner sideways into a
+//! notch, and a corner moving into a notch's far side during a step is then met by no contact at
+//! its start. Here every edge a corner may reach is one, so the notch's two sides both hold it.
 
 use glam::DVec2;
 
@@ -76,18 +77,23 @@ impl Outline<'_> {
             })
     }
 
-    /// Whether `x` lies in corner `m`'s normal cone: beyond both its edges' ends.
-    fn in_cone(&self, m: usize, x: DVec2) -> bool {
+    /// Whether `x` lies in corner `m`'s normal cone, beyond both its edges' ends by more than
+    /// `band` (nearer, the edges meet it); with no band, on its boundary too (a disk's centre).
+    fn in_cone(&self, m: usize, x: DVec2, band: f64) -> bool {
         let n = self.len();
         let v = self.points[m];
-        (x - v).dot(self.points[(m + 1) % n] - v) <= 0.0 && (x - v).dot(self.points[(m + n - 1) % n] - v) <= 0.0
+        let beyond = |w: DVec2| match (x - v).dot(w - v) {
+            along if band > 0.0 => along < -band * w.distance(v),
+            along => along <= 0.0,
+        };
+        beyond(self.points[(m + 1) % n]) && beyond(self.points[(m + n - 1) % n])
     }
 
     /// Every way a point `x` (a disk's centre) meets the outline within `alert`: inside it, the
     /// nearest edge and any other within `alert`; outside, each edge it faces and each corner in
     /// whose cone it lies.
     pub fn meetings(&self, x: DVec2, alert: f64, out: &mut Vec<Meeting>) {
-        self.meet(x, alert, None, &|_| true, out)
+        self.meet(x, alert, (None, 0.0), &|_| true, out)
     }
 
     /// [`Self::meetings`] of a corner `x` of another body, kept where that corner is the other
@@ -102,7 +108,7 @@ impl Outline<'_> {
         &self,
         x: DVec2,
         alert: f64,
-        from: Option<DVec2>,
+        (from, band): (Option<DVec2>, f64),
         supports: &dyn Fn(DVec2) -> bool,
         out: &mut Vec<Meeting>,
     ) {
@@ -144,12 +150,17 @@ impl Outline<'_> {
             let t = (x - a).dot(b - a) / (b - a).length_squared().max(f64::MIN_POSITIVE);
             let normal = self.outward(k);
             let gap = normal.dot(x - a);
-            let side = face.map_or(gap >= 0.0, |f| f == k && gap >= -alert);
-            if t > 0.0 && t < 1.0 && side && gap <= alert && supports(normal) {
+            // (Outside the body, yet behind the face's line by a rounding: beside its end.)
+            let side = face.map_or(gap >= -band, |f| f == k && gap >= -alert);
+            // Past the ends by `band`: the corners of two blocks laid face to face coincide, to
+            // roundings that grow as they move, and must go on meeting by their faces.
+            let past = band / a.distance(b);
+            let within = if band > 0.0 { (-past..=1.0 + past).contains(&t) } else { t > 0.0 && t < 1.0 };
+            if within && side && gap <= alert && supports(normal) {
                 out.push(Meeting { gap, normal, at: a + t * (b - a), feature: k as u64 });
             }
         }
-        for m in (0..n).filter(|&m| self.is_corner(m) && self.in_cone(m, x)) {
+        for m in (0..n).filter(|&m| self.is_corner(m) && self.in_cone(m, x, band)) {
             let v = self.points[m];
             let gap = x.distance(v);
             let normal = if gap > 0.0 { (x - v) / gap } else { self.corner_normal(m) };
@@ -172,7 +183,11 @@ impl Outline<'_> {
 pub fn outline_outline(a: Outline, b: Outline, alert: f64, out: &mut Vec<ClipPoint>) {
     let mut meetings = Vec::new();
     let centroid = |o: Outline| o.points.iter().sum::<DVec2>() / o.len() as f64;
+    // Corners this near an edge's end meet the edge (see `meet`).
+    let band = 1e-3 * alert;
+    let first = out.len();
     for (side, (mine, theirs)) in [(a, b), (b, a)].into_iter().enumerate() {
+        let a_side = out.len();
         let (from, n) = (centroid(mine), mine.len());
         for i in (0..n).filter(|&i| mine.is_corner(i)) {
             let x = mine.points[i];
@@ -182,12 +197,19 @@ pub fn outline_outline(a: Outline, b: Outline, alert: f64, out: &mut Vec<ClipPoi
             // tilted on a face keeps both corners' contacts, as clipping keeps an edge's two).
             let supports = |normal: DVec2| [prev, next].iter().all(|p| (*p - x).dot(normal) >= -alert);
             meetings.clear();
-            theirs.meet(x, alert, Some(from), &supports, &mut meetings);
+            theirs.meet(x, alert, (Some(from), band), &supports, &mut meetings);
             for m in meetings.iter().filter(|m| side == 0 || m.feature & CORNER == 0) {
                 // Normal from the outline met to the corner: from b to a when the corner is a's.
                 let normal = if side == 0 { m.normal } else { -m.normal };
+                let point = x - 0.5 * m.gap * m.normal;
+                // A face on a face of the same length: each end is a's corner on b's face and
+                // b's on a's, one contact twice (twins that make NLGS cycle); a's is kept.
+                let twin = |c: &ClipPoint| c.point.distance(point) <= band && c.normal.dot(normal) > 1.0 - 1e-9;
+                if side == 1 && out[first..a_side].iter().any(twin) {
+                    continue;
+                }
                 let feature = (side as u64) << 62 | (i as u64) << 20 | m.feature;
-                out.push(ClipPoint { point: x - 0.5 * m.gap * m.normal, normal, gap: m.gap, feature });
+                out.push(ClipPoint { point, normal, gap: m.gap, feature });
             }
         }
     }
@@ -290,6 +312,24 @@ mod tests {
         outline_outline(Outline { points: &points, corners: &corners }, outline(&divider), 0.05, &mut out);
         assert_eq!(out.len(), 1, "{out:?}");
         assert!((out[0].gap - 0.01).abs() < 1e-12 && (out[0].normal - DVec2::NEG_Y).length() < 1e-12, "{out:?}");
+    }
+
+    /// Two unit squares laid side by side, their corners coincident to roundings (1e-12 off,
+    /// either way): they meet by their shared side at both ends, once each, the normal along x.
+    #[test]
+    fn blocks_laid_face_to_face_meet_by_the_joint_at_both_ends_once() {
+        let sq = |c: DVec2| {
+            [c + DVec2::new(-0.5, -0.5), c + DVec2::new(0.5, -0.5), c + DVec2::new(0.5, 0.5), c + DVec2::new(-0.5, 0.5)]
+        };
+        for offset in [DVec2::ZERO, DVec2::new(1e-12, 1e-12), DVec2::new(-1e-12, 1e-12), DVec2::new(1e-12, -1e-12)] {
+            let (left, right) = (sq(DVec2::new(0.5, 0.5)), sq(DVec2::new(1.5, 0.5) + offset));
+            let mut out = Vec::new();
+            outline_outline(outline(&right), outline(&left), 0.05, &mut out);
+            let mut ys: Vec<f64> = out.iter().map(|c| c.point.y).collect();
+            ys.sort_by(f64::total_cmp);
+            assert!(ys.len() == 2 && ys[0].abs() < 1e-9 && (ys[1] - 1.0).abs() < 1e-9, "{offset}: {out:?}");
+            assert!(out.iter().all(|c| (c.normal - DVec2::X).length() < 1e-9 && c.gap.abs() < 1e-11), "{out:?}");
+        }
     }
 
     /// Two squares side by side, their tops nearly flush, overlapping by 1e-5 sideways: each

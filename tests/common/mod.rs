@@ -175,3 +175,27 @@ hold_velocity = ["x"]
         scene_header(r#""gravity", "friction""#, 300, 0.3, 500.0)
     )
 }
+
+/// The hard cases' semicircular arch as `[[body]]` tables: nine voussoirs between radii 2 and
+/// 2.5; `notch` cuts a small notch into each intrados (a concave voussoir).
+pub fn arch_voussoirs(notch: bool) -> String {
+    use glam::DVec2;
+    let (n, r0, r1) = (9, 2.0f64, 2.5f64);
+    let mut bodies = String::new();
+    for k in 0..n {
+        let at = |f: f64, r: f64| DVec2::from_angle(std::f64::consts::PI * (k as f64 + f) / n as f64) * r;
+        let mut pts = vec![at(0.0, r0), at(0.0, r1), at(1.0, r1), at(1.0, r0)];
+        let c = (pts[0] + pts[1] + pts[2] + pts[3]) / 4.0;
+        if notch {
+            pts.extend([at(0.6, r0), at(0.5, r0 + 0.05), at(0.4, r0)]);
+        }
+        let rel: Vec<String> = pts.iter().map(|p| format!("[{}, {}]", p.x - c.x, p.y - c.y)).collect();
+        bodies.push_str(&format!(
+            "[[body]]\npolygon = {{ center = [{}, {}], vertices = [{}] }}\n",
+            c.x,
+            c.y,
+            rel.join(", ")
+        ));
+    }
+    bodies
+}
