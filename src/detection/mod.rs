@@ -1,11 +1,10 @@
 //! Contact detection: a uniform-grid broad phase (O(N) for tens of thousands of grains) and an
-//! exact narrow phase in f64 (disks, segments, polygons and their convex parts), with an
+//! exact narrow phase in f64 (disks, segments, polygons by their outlines), with an
 //! alert distance: every pair closer than `alert` becomes a contact with its signed gap.
 
 pub mod broad_phase;
 pub mod narrow_phase;
 pub mod outline;
-pub mod polygon_clip;
 
 use glam::DVec2;
 use rayon::prelude::*;

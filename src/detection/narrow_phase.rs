@@ -1,13 +1,12 @@
 //! Exact narrow phase, in f64: disk–disk, disk–segment and disk–polygon closed-form (a clump's
-//! disks each as a disk, a contact per pair of disks that touch), polygon–polygon and
-//! polygon–segment by SAT and clipping; a concave polygon by its outline's corners and edges
-//! ([`super::outline`]). Disk–polygon is not parry2d's f32 query: its normals,
-//! 1e-7 rad off, tilted a clump's two supports on one face against each other, and NLGS cycled.
+//! disks each as a disk, a contact per pair of disks that touch; a concave polygon's outline met
+//! edge by edge), polygon–polygon and polygon–segment by their outlines' corners and edges
+//! ([`super::outline`]). Disk–polygon is not parry2d's f32 query: its normals, 1e-7 rad off,
+//! tilted a clump's two supports on one face against each other, and NLGS cycled.
 
 use glam::DVec2;
 
 use super::outline::{outline_outline, Outline};
-use super::polygon_clip::polygon_polygon;
 use super::{Antagonist, Configuration, DetectedContact};
 use crate::world::{Bodies, BodyShape, PolygonShape, Wall, WallShape};
 
@@ -116,12 +115,8 @@ pub fn body_body(
             let b: Vec<DVec2> = world_vertices(bodies, config, j).into_iter().map(|v| v + image).collect();
             let a = world_vertices(bodies, config, i);
             let (p, q) = (&bodies.polygons[p as usize], &bodies.polygons[q as usize]);
-            if p.is_concave() || q.is_concave() {
-                let (a, b) = (Outline { points: &a, corners: &p.corners }, Outline { points: &b, corners: &q.corners });
-                outline_outline(a, b, alert, &mut pts);
-            } else {
-                polygon_polygon(&a, &b, alert, &mut pts);
-            }
+            let (a, b) = (Outline { points: &a, corners: &p.corners }, Outline { points: &b, corners: &q.corners });
+            outline_outline(a, b, alert, &mut pts);
             for c in pts {
                 push(out, c.feature, c.point, c.normal, c.gap);
             }
@@ -249,13 +244,8 @@ pub fn body_wall(
                 WallShape::Polygon(poly) => &poly.corners,
                 WallShape::Segment { .. } => &[],
             };
-            if polygon.is_concave() || !theirs.is_empty() {
-                let (a, b) =
-                    (Outline { points: &a, corners: &polygon.corners }, Outline { points: &b, corners: theirs });
-                outline_outline(a, b, alert, &mut pts);
-            } else {
-                polygon_polygon(&a, &b, alert, &mut pts);
-            }
+            let (a, b) = (Outline { points: &a, corners: &polygon.corners }, Outline { points: &b, corners: theirs });
+            outline_outline(a, b, alert, &mut pts);
             for c in pts {
                 push(out, c.feature, c.point, c.normal, c.gap);
             }

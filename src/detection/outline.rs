@@ -1,15 +1,15 @@
-//! Contacts of concave polygons, read from their outlines (node-to-segment, as finite-element
-//! contact does): each convex corner of one body against each edge of the other it faces, and
-//! corner against corner where neither meets an edge. A corner inside the other body meets the
-//! face it crossed and the faces still ahead of it. Blocks laid face to face, their corners
-//! coincident to roundings, meet at both ends of the joint, once each. Convex pieces cut from a
-//! concave body would not do: their inner edges give normals that push a corner sideways into a
-//! notch, and a corner moving into a notch's far side during a step is then met by no contact at
-//! its start. Here every edge a corner may reach is one, so the notch's two sides both hold it.
+//! Contacts of polygons, convex or not, with polygons and segments, read from their outlines
+//! (node-to-segment, as finite-element contact does): each convex corner of one body against each
+//! edge of the other it faces, and corner against corner where neither meets an edge. A corner
+//! inside the other body meets the face it crossed and the faces still ahead of it. Blocks laid
+//! face to face, their corners coincident to roundings, meet at both ends of the joint, once each.
+//! Every corner that may reach a face within the step is a contact at its start, where separating
+//! axes and clipping kept only the two ends of one incident edge: a hexagon spinning at 60 rad/s
+//! brought its next corner through the face unseen. Convex pieces cut from a concave body would
+//! not do either: their inner edges give normals that push a corner sideways into a notch. Here a
+//! notch's two sides both hold the corner in it (BENCHMARKS.md, "Concave polygons").
 
 use glam::DVec2;
-
-use super::polygon_clip::ClipPoint;
 
 /// A closed outline in the world frame: counter-clockwise vertices (two for a two-sided
 /// segment), and which of them are convex corners (empty: all are).
@@ -39,6 +39,19 @@ pub struct Meeting {
     /// Where on the outline.
     pub at: DVec2,
     /// Which edge or corner.
+    pub feature: u64,
+}
+
+/// One contact between two outlines.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PolygonContact {
+    /// Contact point (mid-gap).
+    pub point: DVec2,
+    /// Unit normal pointing from `b` to `a`.
+    pub normal: DVec2,
+    /// Signed distance (negative: overlap).
+    pub gap: f64,
+    /// Which corner met which edge or corner (stable from step to step).
     pub feature: u64,
 }
 
@@ -101,9 +114,7 @@ impl Outline<'_> {
     /// side there). Else its own edge meets this outline first, or, inside, another face of this
     /// body is the one it crossed: by the top face, a corner beside an arm's end would be pushed
     /// along the arm (and the arm's corner, by the same test, the other way). A segment is met
-    /// from the side of `from` only, by that face: a corner less than `alert` beyond it has gone
-    /// through (a negative gap), one farther is simply on that side (a cup's arm beyond the
-    /// divider standing in its notch).
+    /// from the side of `from` (the other body's centre) only, by that face.
     fn meet(
         &self,
         x: DVec2,
@@ -144,14 +155,20 @@ impl Outline<'_> {
             return;
         }
         // A segment's face towards `from`, the one a body on that side can meet.
-        let face = from.filter(|_| n == 2).map(|c| usize::from(self.outward(0).dot(c - self.points[0]) < 0.0));
+        // A corner behind that face by less than the body's centre is in front of it has gone
+        // through it (a fast grain's corner, pushed back); farther, it is simply on the other
+        // side (a cup's arm beyond the divider standing in its notch).
+        let face = from.filter(|_| n == 2).map(|c| {
+            let front = self.outward(0).dot(c - self.points[0]);
+            (usize::from(front < 0.0), front.abs())
+        });
         for k in 0..n {
             let (a, b) = self.edge(k);
             let t = (x - a).dot(b - a) / (b - a).length_squared().max(f64::MIN_POSITIVE);
             let normal = self.outward(k);
             let gap = normal.dot(x - a);
             // (Outside the body, yet behind the face's line by a rounding: beside its end.)
-            let side = face.map_or(gap >= -band, |f| f == k && gap >= -alert);
+            let side = face.map_or(gap >= -band, |(f, front)| f == k && gap >= -front);
             // Past the ends by `band`: the corners of two blocks laid face to face coincide, to
             // roundings that grow as they move, and must go on meeting by their faces.
             let past = band / a.distance(b);
@@ -180,7 +197,7 @@ impl Outline<'_> {
 /// Contacts between outlines `a` and `b` closer than `alert`, normals from `b` to `a`: the
 /// corners of `a` against `b`, then those of `b` against `a` (a corner meeting a corner is
 /// counted once, from `a`).
-pub fn outline_outline(a: Outline, b: Outline, alert: f64, out: &mut Vec<ClipPoint>) {
+pub fn outline_outline(a: Outline, b: Outline, alert: f64, out: &mut Vec<PolygonContact>) {
     let mut meetings = Vec::new();
     let centroid = |o: Outline| o.points.iter().sum::<DVec2>() / o.len() as f64;
     // Corners this near an edge's end meet the edge (see `meet`).
@@ -195,7 +212,10 @@ pub fn outline_outline(a: Outline, b: Outline, alert: f64, out: &mut Vec<ClipPoi
             // Corner i is its body's support point against `normal`, or will be within the step:
             // neither of its edges dips below it by more than the alert distance (a box lying
             // tilted on a face keeps both corners' contacts, as clipping keeps an edge's two).
-            let supports = |normal: DVec2| [prev, next].iter().all(|p| (*p - x).dot(normal) >= -alert);
+            // (The alert distance widened by a fast body's travel would let an edge dip far: a
+            // tenth of the edge is the most a face lying nearly flat dips.)
+            let supports =
+                |normal: DVec2| [prev, next].iter().all(|p| (*p - x).dot(normal) >= -alert.min(0.1 * p.distance(x)));
             meetings.clear();
             theirs.meet(x, alert, (Some(from), band), &supports, &mut meetings);
             for m in meetings.iter().filter(|m| side == 0 || m.feature & CORNER == 0) {
@@ -204,12 +224,12 @@ pub fn outline_outline(a: Outline, b: Outline, alert: f64, out: &mut Vec<ClipPoi
                 let point = x - 0.5 * m.gap * m.normal;
                 // A face on a face of the same length: each end is a's corner on b's face and
                 // b's on a's, one contact twice (twins that make NLGS cycle); a's is kept.
-                let twin = |c: &ClipPoint| c.point.distance(point) <= band && c.normal.dot(normal) > 1.0 - 1e-9;
+                let twin = |c: &PolygonContact| c.point.distance(point) <= band && c.normal.dot(normal) > 1.0 - 1e-9;
                 if side == 1 && out[first..a_side].iter().any(twin) {
                     continue;
                 }
                 let feature = (side as u64) << 62 | (i as u64) << 20 | m.feature;
-                out.push(ClipPoint { point, normal, gap: m.gap, feature });
+                out.push(PolygonContact { point, normal, gap: m.gap, feature });
             }
         }
     }
@@ -330,6 +350,24 @@ mod tests {
             assert!(ys.len() == 2 && ys[0].abs() < 1e-9 && (ys[1] - 1.0).abs() < 1e-9, "{offset}: {out:?}");
             assert!(out.iter().all(|c| (c.normal - DVec2::X).length() < 1e-9 && c.gap.abs() < 1e-11), "{out:?}");
         }
+    }
+
+    /// A box tilted by 0.3 rad over a segment: its lowest corner is the deepest contact, at its
+    /// height, the normal straight up.
+    #[test]
+    fn a_tilted_box_on_a_segment_touches_with_its_lowest_corner() {
+        let rot = DVec2::from_angle(0.3);
+        let b: Vec<DVec2> = [[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]]
+            .iter()
+            .map(|v| DVec2::new(0.0, 1.0) + rot.rotate(DVec2::new(v[0], v[1])))
+            .collect();
+        let low = b.iter().map(|v| v.y).fold(f64::INFINITY, f64::min);
+        let seg = [DVec2::new(-5.0, 0.0), DVec2::new(5.0, 0.0)];
+        let mut out = Vec::new();
+        outline_outline(outline(&b), outline(&seg), 1.0, &mut out);
+        let deepest = out.iter().map(|c| c.gap).fold(f64::INFINITY, f64::min);
+        assert!((deepest - low).abs() < 1e-12, "{out:?}");
+        assert!(out.iter().all(|c| (c.normal - DVec2::Y).length() < 1e-12), "{out:?}");
     }
 
     /// Two squares side by side, their tops nearly flush, overlapping by 1e-5 sideways: each
