@@ -21,13 +21,6 @@ pub struct Outline<'a> {
     pub corners: &'a [bool],
 }
 
-impl<'a> Outline<'a> {
-    /// The outline of `points` with every vertex a corner (a convex polygon, a segment).
-    pub fn convex(points: &'a [DVec2]) -> Self {
-        Self { points, corners: &[] }
-    }
-}
-
 /// How a point meets an outline: the gap, the normal from the outline to the point, the point
 /// of the outline it meets, and the feature (an edge `k`, or `CORNER | m` for corner `m`).
 #[derive(Clone, Copy, Debug)]
@@ -70,6 +63,12 @@ impl Outline<'_> {
     /// Edge `k`: from vertex `k` to the next (a segment's two edges are its two faces).
     fn edge(&self, k: usize) -> (DVec2, DVec2) {
         (self.points[k], self.points[(k + 1) % self.len()])
+    }
+
+    /// Where `x` projects along edge `k`: 0 at its start, 1 at its end.
+    fn along(&self, k: usize, x: DVec2) -> f64 {
+        let (a, b) = self.edge(k);
+        (x - a).dot(b - a) / (b - a).length_squared().max(f64::MIN_POSITIVE)
     }
 
     /// Edge `k`'s outward unit normal.
@@ -126,8 +125,7 @@ impl Outline<'_> {
         let n = self.len();
         let closest = |k: usize| {
             let (a, b) = self.edge(k);
-            let t = ((x - a).dot(b - a) / (b - a).length_squared().max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
-            a + t * (b - a)
+            a + self.along(k, x).clamp(0.0, 1.0) * (b - a)
         };
         if self.contains(x) {
             // The face it crossed, and every other face it could leave by within the alert
@@ -137,8 +135,7 @@ impl Outline<'_> {
             };
             let crossed = nearest(&mut (0..n).filter(|&k| supports(self.outward(k)))).or(nearest(&mut (0..n)));
             for k in 0..n {
-                let (a, b, normal) = (self.edge(k).0, self.edge(k).1, self.outward(k));
-                let t = (x - a).dot(b - a) / (b - a).length_squared().max(f64::MIN_POSITIVE);
+                let ((a, b), normal, t) = (self.edge(k), self.outward(k), self.along(k, x));
                 // Signed: near a notch's inner corner, the notch's other side is still ahead.
                 let gap = normal.dot(x - a);
                 if crossed.is_some_and(|c| c.1 == k) {
@@ -163,9 +160,7 @@ impl Outline<'_> {
             (usize::from(front < 0.0), front.abs())
         });
         for k in 0..n {
-            let (a, b) = self.edge(k);
-            let t = (x - a).dot(b - a) / (b - a).length_squared().max(f64::MIN_POSITIVE);
-            let normal = self.outward(k);
+            let ((a, b), normal, t) = (self.edge(k), self.outward(k), self.along(k, x));
             let gap = normal.dot(x - a);
             // (Outside the body, yet behind the face's line by a rounding: beside its end.)
             let side = face.map_or(gap >= -band, |(f, front)| f == k && gap >= -front);
@@ -210,10 +205,9 @@ pub fn outline_outline(a: Outline, b: Outline, alert: f64, out: &mut Vec<Polygon
             let x = mine.points[i];
             let (prev, next) = (mine.points[(i + n - 1) % n], mine.points[(i + 1) % n]);
             // Corner i is its body's support point against `normal`, or will be within the step:
-            // neither of its edges dips below it by more than the alert distance (a box lying
-            // tilted on a face keeps both corners' contacts, as clipping keeps an edge's two).
-            // (The alert distance widened by a fast body's travel would let an edge dip far: a
-            // tenth of the edge is the most a face lying nearly flat dips.)
+            // neither of its edges dips below it by more than the alert distance or a tenth of
+            // the edge (a box lying tilted on a face keeps both corners' contacts; the alert
+            // distance widened by a fast body's travel alone would let a far corner pass).
             let supports =
                 |normal: DVec2| [prev, next].iter().all(|p| (*p - x).dot(normal) >= -alert.min(0.1 * p.distance(x)));
             meetings.clear();
@@ -239,8 +233,9 @@ pub fn outline_outline(a: Outline, b: Outline, alert: f64, out: &mut Vec<Polygon
 mod tests {
     use super::*;
 
+    /// The outline of `points` with every vertex a corner (a convex polygon, a segment).
     fn outline(points: &[DVec2]) -> Outline<'_> {
-        Outline::convex(points)
+        Outline { points, corners: &[] }
     }
 
     /// A cup: a 2 × 1 block with a notch 1.6 wide, 0.8 deep, cut from its top.

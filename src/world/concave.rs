@@ -34,12 +34,14 @@ pub fn simple_outline(vertices: &[DVec2]) -> Result<Vec<DVec2>, String> {
         if n < 3 {
             return Err("degenerate polygon: fewer than 3 distinct vertices off one line".into());
         }
+        // Vertex k with the ones before and after it.
+        let corner = |k: usize| (vertices[kept[(k + n - 1) % n]], vertices[kept[k]], vertices[kept[(k + 1) % n]]);
         let straight = (0..n).find(|&k| {
-            let (a, b, c) = (vertices[kept[(k + n - 1) % n]], vertices[kept[k]], vertices[kept[(k + 1) % n]]);
+            let (a, b, c) = corner(k);
             orient(a, b, c).abs() <= eps
         });
         let Some(k) = straight else { break };
-        let (a, b, c) = (vertices[kept[(k + n - 1) % n]], vertices[kept[k]], vertices[kept[(k + 1) % n]]);
+        let (a, b, c) = corner(k);
         if (b - a).dot(c - b) < 0.0 {
             return Err(format!("polygon folds back on itself at vertex {}", kept[k]));
         }
