@@ -129,6 +129,48 @@ fn solve_command_writes_the_report_and_fails_cleanly_on_bad_input() {
     assert!(v["notes"][0].as_str().is_some_and(|n| n.starts_with("LATIN search direction")), "{}", v["notes"]);
 }
 
+/// `generate deposit` writes a deposit's first step: at 2,000 disks, μ 0.3 and seed 7 the shipped
+/// `scenes/deposit_2k.toml`'s, to the byte (the problem `--dump-problem 1` writes).
+#[test]
+fn generate_deposit_is_the_shipped_deposit_scenes_first_step() {
+    let dir = std::env::temp_dir().join(format!("moreau-deposit-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let generated = dir.join("deposit.dat");
+    let o = moreau()
+        .args(["generate", "deposit", "--n", "2000", "--mu", "0.3", "--seed", "7", "--out"])
+        .arg(&generated)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("(4110 contacts)"), "{}", String::from_utf8_lossy(&o.stdout));
+    let o = moreau()
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "run",
+            "scenes/deposit_2k.toml",
+            "--device",
+            "cpu",
+            "--max-iter",
+            "1",
+            "--dump-problem",
+            "1",
+            "--quiet",
+            "--out",
+        ])
+        .arg(dir.join("run"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let dumped = std::fs::read(dir.join("run").join("problem_000001.dat")).unwrap();
+    assert!(std::fs::read(&generated).unwrap() == dumped, "the generated deposit differs from the scene's first step");
+    let o = moreau().args(["generate", "deposit", "--n", "300000", "--out"]).arg(dir.join("big.dat")).output().unwrap();
+    assert!(
+        !o.status.success()
+            && String::from_utf8_lossy(&o.stderr).contains("a deposit of 300000 disks: give 1 to 200000")
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// Inputs that used to panic or abort now fail with a message naming the problem and exit 2.
 #[test]
 fn former_panics_and_aborts_are_clear_errors() {

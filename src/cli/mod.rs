@@ -39,6 +39,9 @@ enum GeneratedProblem {
     Lattice,
     /// A few random contacts among a few disks.
     Random,
+    /// The first step of disks deposited in a 20 cm box, loaded by gravity from rest (`--n` disks;
+    /// 2,000 at `--mu 0.3 --seed 7` is scenes/deposit_2k.toml's): hard for every solver when μ > 0.
+    Deposit,
 }
 
 #[derive(clap::Args)]
@@ -136,7 +139,7 @@ enum Command {
         kind: GeneratedProblem,
         #[arg(long)]
         out: PathBuf,
-        /// Number of light disks (heavy-column) or contacts (random).
+        /// Number of light disks (heavy-column), contacts (random) or disks (deposit).
         #[arg(long, default_value_t = 10)]
         n: usize,
         #[arg(long, default_value_t = 1000.0)]
@@ -196,6 +199,7 @@ fn run(cli: Cli) -> Result<()> {
                 GeneratedProblem::HeavyColumn => generate::heavy_column(n, mass_ratio, mu),
                 GeneratedProblem::Lattice => generate::lattice_packing(nx, ny, mu, seed),
                 GeneratedProblem::Random => generate::random_small(n, mu, seed),
+                GeneratedProblem::Deposit => crate::sweep::problems::deposit_problem(n, mu, seed)?,
             };
             let storage = match storage {
                 StorageChoice::Dense => Storage::Dense,
