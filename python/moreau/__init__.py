@@ -38,6 +38,7 @@ __all__ = [
     "SolveResult",
     "Simulation",
     "World",
+    "deposit",
     "read_fc2d",
     "solve",
     "__version__",
@@ -157,6 +158,14 @@ def _csr(W: Any) -> Tuple[bytes, bytes, bytes, Tuple[int, int]]:
 def read_fc2d(path: Path) -> Problem:
     """Reads a Siconos fc2d problem file (dense or sparse W)."""
     return Problem(_moreau.read_fc2d(path), None, None)
+
+
+def deposit(disks: int, mu: float = 0.3, seed: int = 7) -> Problem:
+    """The first step of ``disks`` disks (radius 2-3 mm) deposited in a 20 cm box and loaded by
+    gravity from rest, every pair at friction ``mu`` (``moreau generate deposit``; 2,000 disks at
+    the defaults are scenes/deposit_2k.toml's first step): the frictional deposit, hard for every
+    solver when ``mu > 0``."""
+    return Problem(_moreau.deposit(disks, mu, seed), None, None)
 
 
 @dataclass

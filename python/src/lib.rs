@@ -120,6 +120,15 @@ fn read_problem(path: PathBuf) -> PyResult<Problem> {
     read_fc2d(&path).map(Problem).map_err(error)
 }
 
+/// The first step of `disks` disks deposited in a 20 cm box and loaded by gravity from rest
+/// (`moreau generate deposit`).
+#[pyfunction(name = "deposit")]
+fn deposit_problem(disks: i64, mu: f64, seed: u64) -> PyResult<Problem> {
+    let max = moreau::sweep::problems::MAX_DEPOSIT_DISKS;
+    let disks = usize::try_from(disks).map_err(|_| error(format!("a deposit of {disks} disks: give 1 to {max}")))?;
+    moreau::sweep::problems::deposit_problem(disks, mu, seed).map(Problem).map_err(|e| error(format!("{e:#}")))
+}
+
 /// Solves `problem`; returns a dict of the report (arrays as bytes).
 #[pyfunction]
 #[pyo3(signature = (problem, solver, tol, max_iter, device, threads, r0 = None, history_every = 0, anderson = 0, focus = 0, criterion = "natural", ordering = "forward", omega = 1.0))]
@@ -811,6 +820,7 @@ fn _moreau(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<World>()?;
     m.add_class::<Simulation>()?;
     m.add_function(wrap_pyfunction!(read_problem, m)?)?;
+    m.add_function(wrap_pyfunction!(deposit_problem, m)?)?;
     m.add_function(wrap_pyfunction!(solve, m)?)?;
     Ok(())
 }
