@@ -279,6 +279,14 @@ const char *moreau_version(void);
 // Reads a Siconos fc2d problem file (dense or sparse `W`).
 enum MoreauStatus moreau_problem_read_fc2d(const char *path, struct MoreauProblem **out);
 
+// The first step of `disks` disks (radius 2–3 mm) deposited in a 20 cm box and loaded by gravity
+// from rest, every pair at friction `mu`, drawn from `seed` (`moreau generate deposit`; 2,000
+// disks at μ 0.3 and seed 7 are `scenes/deposit_2k.toml`'s first step): the frictional deposit.
+enum MoreauStatus moreau_problem_deposit(size_t disks,
+                                         double mu,
+                                         uint64_t seed,
+                                         struct MoreauProblem **out);
+
 // A problem from `W` (2n × 2n, compressed sparse rows: `row_start` has 2n + 1 entries,
 // `columns` and `values` have `row_start[2n]`), `q` (2n) and `mu` (n), for `n_contacts` = n.
 // Vectors interleave per contact, normal first: `(r_n0, r_t0, r_n1, …)`.

@@ -405,6 +405,23 @@ pub extern "C" fn moreau_problem_read_fc2d(path: *const c_char, out: *mut *mut M
     })
 }
 
+/// The first step of `disks` disks (radius 2–3 mm) deposited in a 20 cm box and loaded by gravity
+/// from rest, every pair at friction `mu`, drawn from `seed` (`moreau generate deposit`; 2,000
+/// disks at μ 0.3 and seed 7 are `scenes/deposit_2k.toml`'s first step): the frictional deposit.
+#[no_mangle]
+pub extern "C" fn moreau_problem_deposit(
+    disks: usize,
+    mu: f64,
+    seed: u64,
+    out: *mut *mut MoreauProblem,
+) -> MoreauStatus {
+    guard(|| {
+        let problem = moreau::sweep::problems::deposit_problem(disks, mu, seed)
+            .or_else(|e| fail(MoreauStatus::Problem, format!("{e:#}")))?;
+        give(out, MoreauProblem(problem))
+    })
+}
+
 /// A problem from `W` (2n × 2n, compressed sparse rows: `row_start` has 2n + 1 entries,
 /// `columns` and `values` have `row_start[2n]`), `q` (2n) and `mu` (n), for `n_contacts` = n.
 /// Vectors interleave per contact, normal first: `(r_n0, r_t0, r_n1, …)`.

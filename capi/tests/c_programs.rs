@@ -218,6 +218,24 @@ fn a_c_program_solves_a_siconos_file_as_the_library_does() {
     assert!(on_gpu > 0.0 && on_gpu < all && out.contains("device: gpu"), "{out}");
 }
 
+/// The deposit family from C: the library's problem, solved to the same iterations; a deposit of
+/// no disks is refused in the library's words.
+#[test]
+fn a_c_program_solves_a_deposit_as_the_library_does() {
+    let program = compile("solve_file");
+    let (code, out, err) = run(&program, &["deposit:100", "1e-8", "interior-point"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let problem = moreau::sweep::problems::deposit_problem(100, 0.3, 7).unwrap();
+    let opts = SolverOptions { tol: 1e-8, max_iter: 100_000, ..SolverOptions::default() };
+    let rust = moreau::solve(&problem, SolverKind::InteriorPoint, &opts, None);
+    assert!(rust.converged);
+    assert_eq!(field(&out, "contacts") as usize, problem.n_contacts(), "{out}");
+    assert_eq!(field(&out, "iterations") as usize, rust.iterations, "{out}");
+    let (code, out, err) = run(&program, &["deposit:0"]);
+    assert_eq!(code, Some(1), "{out}{err}");
+    assert!(err.contains("a deposit of 0 disks: give 1 to 200000"), "{err}");
+}
+
 #[test]
 fn a_c_program_steps_a_pile_as_the_library_does() {
     let program = compile("step_scene");

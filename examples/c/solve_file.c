@@ -3,9 +3,13 @@
  *   cc -I include examples/c/solve_file.c -L target/release -lmoreau_c -o solve_file
  *   ./solve_file PROBLEM.dat [TOL [SOLVER [ANDERSON [DEVICE [OMEGA]]]]]
  *
+ * PROBLEM.dat may be deposit:N instead, the first step of N disks deposited in a box at
+ * friction 0.3, seed 7 (moreau_problem_deposit, as `moreau generate deposit`).
+ *
  * Exit status: 0 converged, 3 not converged, 1 an error (the message names it). */
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "moreau.h"
 
@@ -25,7 +29,11 @@ int main(int argc, char **argv) {
         return 1;
     }
     MoreauProblem *problem = NULL;
-    if (moreau_problem_read_fc2d(argv[1], &problem) != MOREAU_STATUS_OK) {
+    if (strncmp(argv[1], "deposit:", 8) == 0) {
+        if (moreau_problem_deposit((size_t)strtoul(argv[1] + 8, NULL, 10), 0.3, 7, &problem) != MOREAU_STATUS_OK) {
+            return report_error("building the deposit");
+        }
+    } else if (moreau_problem_read_fc2d(argv[1], &problem) != MOREAU_STATUS_OK) {
         return report_error("reading the problem");
     }
     MoreauSolveOptions options = moreau_solve_options_default();
