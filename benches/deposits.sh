@@ -2,7 +2,7 @@
 # The frictional deposit as a family (BENCHMARKS.md, "The frictional deposit as a family"): the
 # first steps of deposits of 100 to 450 disks in the same 20 cm box (6 to 25 grains deep), six
 # seeds each, swept by the solvers that reach tight tolerances. Usage:
-#   bash benches/deposits.sh [OUT] [MU]   (default out/deposits, μ 0.3; about 5 min on 2 cores)
+#   bash benches/deposits.sh [OUT] [MU]   (default out/deposits, μ 0.3; about 2 min on 2 cores)
 set -euo pipefail
 out=${1:-out/deposits}
 mu=${2:-0.3}
