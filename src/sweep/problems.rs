@@ -75,10 +75,7 @@ pub fn deposit_problem(disks: usize, mu: f64, seed: u64) -> Result<ContactProble
          [[generate]]\nkind = \"deposition\"\ncount = {disks}\nradius = [0.002, 0.003]\n\
          region = {{ min = [0.0, 0.0], max = [0.2, {height:?}] }}\nseed = {seed}\n"
     );
-    let s = scene::parse(&text, Path::new("deposit"))?;
-    let mut sim = Simulation::new(s.world, s.settings)?;
-    let first = sim.next_problem()?;
-    first.map(|(p, _)| p).ok_or_else(|| anyhow::anyhow!("a deposit of {disks} disks has no contact"))
+    first_problem(scene::parse(&text, Path::new("deposit"))?, || format!("a deposit of {disks} disks has no contact"))
 }
 
 /// The first-step problem of the scene at `path` with every pair's friction set to `mu`
@@ -94,9 +91,14 @@ pub fn first_step_problem(path: &Path, mu: f64) -> Result<ContactProblem> {
             s.world.materials.set(a, b, law);
         }
     }
-    let mut sim = Simulation::new(s.world, s.settings)?;
-    let first = sim.next_problem()?;
-    first.map(|(p, _)| p).ok_or_else(|| anyhow::anyhow!("{}: the first step has no contact", path.display()))
+    first_problem(s, || format!("{}: the first step has no contact", path.display()))
+}
+
+/// The problem of `scene`'s first step, assembled and not solved; `empty` words the error when
+/// that step has no contact.
+fn first_problem(scene: scene::Scene, empty: impl FnOnce() -> String) -> Result<ContactProblem> {
+    let mut sim = Simulation::new(scene.world, scene.settings)?;
+    sim.next_problem()?.map(|(p, _)| p).ok_or_else(|| anyhow::anyhow!(empty()))
 }
 
 #[cfg(test)]
