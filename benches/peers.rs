@@ -165,8 +165,14 @@ fn main() {
         Ordering::Worklist => vec![],
         _ => ladder.map(|t| (format!("tol {t:.0e}, work list"), Some(t), None, Some(0), None, list, None)).into(),
     };
+    // Under the step-velocity test, the literal tol 1e-4 as well: the velocity test
+    // (each contact within 1e-4 of the largest free velocity) and the natural map.
     let held: Vec<_> = match scene_options.criterion {
-        StopCriterion::StepVelocity => vec![],
+        StopCriterion::StepVelocity => {
+            [(StopCriterion::Velocity, "velocity test"), (StopCriterion::Natural, "natural map")]
+                .map(|(c, name)| (format!("tol 1e-4, {name}"), Some(1e-4), None, None, None, None, Some(c)))
+                .into()
+        }
         _ => [1e-2, 3e-3]
             .map(|t| {
                 let step_velocity = Some(StopCriterion::StepVelocity);

@@ -61,8 +61,15 @@ fn bounds(series: &[Series], log: bool, pick: fn(&(f64, f64)) -> f64) -> (f64, f
         return (1.0, 10.0);
     }
     if log {
-        let (lo, hi) = if hi / lo < 10.0 { (lo / 3.0, hi * 3.0) } else { (lo, hi) };
-        (lo, hi)
+        // A span under a decade widens to show a labelled power of ten; a longer one is padded
+        // by 5 % of its decades, as a linear axis by 5 % of its span: a curve at the extreme
+        // value (the most accurate setting of a chart) must not lie hidden on the frame.
+        if hi / lo < 10.0 {
+            (lo / 3.0, hi * 3.0)
+        } else {
+            let pad = (hi / lo).powf(0.05);
+            (lo / pad, hi * pad)
+        }
     } else {
         let pad = ((hi - lo) * 0.05).max(1e-12);
         (lo - pad, hi + pad)
@@ -163,4 +170,26 @@ pub fn write_chart(stem: &Path, c: &Chart) -> Result<()> {
     let png = stem.with_extension("png");
     draw_any(BitMapBackend::new(&png, (900, 600)).into_drawing_area(), c)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every point lies strictly inside the axis, on log and linear axes alike.
+    #[test]
+    fn points_at_the_extremes_stay_off_the_frame() {
+        let points = vec![(4.9, 5.4e-5), (8.9, 5.6e-2), (33.2, 5.4e-5)];
+        let series = [("a".to_string(), points.clone())];
+        for log in [true, false] {
+            let (x0, x1) = bounds(&series, log, |p| p.0);
+            let (y0, y1) = bounds(&series, log, |p| p.1);
+            for &(x, y) in &points {
+                assert!(x0 < x && x < x1 && y0 < y && y < y1, "log {log}: ({x}, {y}) in [{x0}, {x1}] × [{y0}, {y1}]");
+            }
+        }
+        // Less than a decade on a log axis: widened threefold either side.
+        let short = [("b".to_string(), vec![(2.0, 1.0), (4.0, 1.0)])];
+        assert_eq!(bounds(&short, true, |p| p.0), (2.0 / 3.0, 12.0));
+    }
 }
