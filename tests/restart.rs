@@ -301,6 +301,46 @@ fn saved_grains_start_a_scene_where_the_run_left_them() {
     assert!(!dir.join("no.csv").exists());
 }
 
+/// `--until-rest V` ends a run at the first step whose grains' rms speed is at most V m/s, with
+/// that step's picture and saved grains; a run that never gets there says so; a speed that is no
+/// speed is refused.
+#[test]
+fn a_run_until_rest_stops_at_the_first_step_at_rest() {
+    let dir = temp("until_rest");
+    let (out, saved) = (dir.join("run"), dir.join("rest.csv"));
+    let args = ["run", "scenes/pile.toml", "--device", "cpu", "--vtk-every", "0", "--until-rest", "1e-2", "--out"];
+    let said = run(&[&args[..], &[out.to_str().unwrap(), "--save-grains", saved.to_str().unwrap()]].concat());
+    let at = said.find("at rest after step ").map(|i| &said[i + 19..]).unwrap_or_else(|| panic!("{said}"));
+    let step: usize = at[..at.find(':').unwrap()].parse().unwrap();
+    assert!(step > 1 && step < 300, "{said}");
+    assert!(said.contains(&format!("grains of step {step} in")), "{said}");
+    assert!(out.join(format!("state_{step:06}.png")).exists(), "the picture of the step at rest");
+    let rows = std::fs::read_to_string(out.join("steps.csv")).unwrap().lines().count() - 1;
+    assert_eq!(rows, step);
+    // The speed it judged, recomputed from the same run in the library: above 1e-2 the step
+    // before, at most 1e-2 at the step it stopped at, and √(2 E / M) for these free disks.
+    let mut sim = Simulation::from_scene(Path::new("scenes/pile.toml")).unwrap();
+    let speeds: Vec<f64> = (0..step)
+        .map(|_| {
+            sim.step().unwrap();
+            sim.world.bodies.rms_speed()
+        })
+        .collect();
+    assert!(speeds[step - 2] > 1e-2 && speeds[step - 1] <= 1e-2, "{speeds:?}");
+    let mass: f64 = sim.world.bodies.mass.iter().sum();
+    let from_energy = (2.0 * sim.world.kinetic_energy() / mass).sqrt();
+    assert!((from_energy - speeds[step - 1]).abs() <= 1e-12 * from_energy.max(1e-30), "{from_energy} {speeds:?}");
+
+    let short =
+        run(&["run", "scenes/pile.toml", "--steps", "3", "--until-rest", "1e-9", "--out", out.to_str().unwrap()]);
+    assert!(short.contains("warning: not at rest after step 3"), "{short}");
+    for bad in ["0", "-1", "nan", "inf"] {
+        let o = moreau().args(["run", "scenes/pile.toml", "--quiet", &format!("--until-rest={bad}")]).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains("--until-rest ") && err.contains("finite and > 0"), "{bad}: {err}");
+    }
+}
+
 /// A paused GPU mixing (solves left plain, the pause's length) goes into a checkpoint and back,
 /// follows the simulation to another backend, and a checkpoint without it (an older file) reads
 /// as no pause; an impossible one is refused by name.

@@ -83,6 +83,11 @@ pub struct RunArgs {
     /// scene's `[[grains]] file` starts from: a deposit settled once, studied many times.
     #[arg(long)]
     save_grains: Option<PathBuf>,
+    /// Stop after the first step that leaves the grains at rest: their root-mean-square speed
+    /// (m/s, from their kinetic energy, rotation included) at most this. The steps bound the run;
+    /// the last outputs (VTK, picture, --save-grains) are those of the step at rest.
+    #[arg(long)]
+    until_rest: Option<f64>,
 }
 
 /// Non-converged steps reported one by one; the rest are counted in the summary and steps.csv.
@@ -120,6 +125,9 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         None => bail!("the checkpoint is at step {start}, the scene's last: give --steps to go further"),
     };
     let last = start + steps;
+    if let Some(speed) = a.until_rest.filter(|v| !(v.is_finite() && *v > 0.0)) {
+        bail!("--until-rest {speed}: a speed in m/s, finite and > 0");
+    }
     if let (Some(path), Some(why)) = (&a.save_grains, crate::io::grains::unsavable(&scene.world)) {
         bail!("--save-grains {}: {why}", path.display());
     }
@@ -167,7 +175,7 @@ pub fn run_command(a: RunArgs) -> Result<()> {
         summary.solver,
         summary.tol
     );
-    let per_step = PerStep {
+    let mut per_step = PerStep {
         dump_problem: a.dump_problem.clone(),
         wall_forces: scene.output.wall_forces,
         profile_every: if scene.output.profile { scene.output.every } else { 0 },
@@ -218,7 +226,27 @@ pub fn run_command(a: RunArgs) -> Result<()> {
                 bail!("{}: {e}\n{kept} are in {}", a.scene.display(), out_dir.display());
             }
         };
+        let speed = sim.world.bodies.rms_speed();
+        let at_rest = a.until_rest.is_some_and(|v| speed <= v);
+        if at_rest {
+            // This step is the run's last: its VTK, profile and (unless another was asked) picture.
+            if per_step.picture_step == per_step.last {
+                per_step.picture_step = report.step;
+            }
+            per_step.last = report.step;
+        }
         per_step.write(&sim, &report, &mut output, &mut summary, &bar)?;
+        if at_rest {
+            bar.suspend(|| eprintln!("at rest after step {}: the grains' rms speed is {speed:.3e} m/s", report.step));
+            break;
+        }
+        if let (Some(v), true) = (a.until_rest, report.step == last) {
+            bar.suspend(|| {
+                eprintln!(
+                    "warning: not at rest after step {last}: the grains' rms speed is {speed:.3e} m/s, above {v:e}"
+                )
+            });
+        }
     }
     bar.finish_and_clear();
     if let Some(path) = &a.save_grains {

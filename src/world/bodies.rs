@@ -466,6 +466,24 @@ impl Bodies {
         e
     }
 
+    /// Root-mean-square speed of the moving bodies (m/s), rotation included: `√(2 E / M)` over the
+    /// bodies of nonzero inverse mass (a fixed body driven at a speed never counts). Zero when none moves.
+    pub fn rms_speed(&self) -> f64 {
+        let moving = || (0..self.len()).filter(|&k| self.inv_mass[k] > 0.0);
+        let mass: f64 = moving().map(|k| self.mass[k]).sum();
+        let twice_energy: f64 = moving()
+            .map(|k| {
+                let spin = if self.rotation { self.inertia[k] * self.spin[k] * self.spin[k] } else { 0.0 };
+                self.mass[k] * self.velocity[k].length_squared() + spin
+            })
+            .sum();
+        if mass > 0.0 {
+            (twice_energy / mass).sqrt()
+        } else {
+            0.0
+        }
+    }
+
     /// Potential energy in `gravity`, relative to y = 0 (J).
     pub fn potential_energy(&self, gravity: DVec2) -> f64 {
         (0..self.len()).map(|k| -self.mass[k] * gravity.dot(self.position[k])).sum()
