@@ -339,6 +339,10 @@ fn a_run_until_rest_stops_at_the_first_step_at_rest() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success() && err.contains("--until-rest ") && err.contains("finite and > 0"), "{bad}: {err}");
     }
+    // A punch is static: no step to be at rest after.
+    let o = moreau().args(["run", "scenes/signorini_punch.toml", "--quiet", "--until-rest", "1e-2"]).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("--until-rest: scenes/signorini_punch.toml is a punch scene"), "{err}");
 }
 
 /// A paused GPU mixing (solves left plain, the pause's length) goes into a checkpoint and back,

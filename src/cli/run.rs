@@ -97,8 +97,11 @@ pub fn run_command(a: RunArgs) -> Result<()> {
     let mut scene = match scene::load_any(&a.scene)? {
         scene::AnyScene::Granular(s) => *s,
         scene::AnyScene::Punch(p) => {
-            if a.time_step.is_some() {
-                bail!("--time-step: {} is a punch scene, a static problem without time steps", a.scene.display());
+            if let Some(flag) = [(a.time_step.is_some(), "--time-step"), (a.until_rest.is_some(), "--until-rest")]
+                .into_iter()
+                .find_map(|(given, flag)| given.then_some(flag))
+            {
+                bail!("{flag}: {} is a punch scene, a static problem without time steps", a.scene.display());
             }
             let overrides = PunchOverrides {
                 solver: a.solver,
@@ -226,7 +229,7 @@ pub fn run_command(a: RunArgs) -> Result<()> {
                 bail!("{}: {e}\n{kept} are in {}", a.scene.display(), out_dir.display());
             }
         };
-        let speed = sim.world.bodies.rms_speed();
+        let speed = a.until_rest.map(|_| sim.world.bodies.rms_speed()).unwrap_or(f64::INFINITY);
         let at_rest = a.until_rest.is_some_and(|v| speed <= v);
         if at_rest {
             // This step is the run's last: its VTK, profile and (unless another was asked) picture.
