@@ -165,8 +165,8 @@ fn main() {
         Ordering::Worklist => vec![],
         _ => ladder.map(|t| (format!("tol {t:.0e}, work list"), Some(t), None, Some(0), None, list, None)).into(),
     };
-    // Under the step-velocity test, the literal tol 1e-4 as well: the velocity test
-    // (each contact within 1e-4 of the largest free velocity) and the natural map.
+    // Under the step-velocity test, tol 1e-4 in the other two readings as well: the velocity
+    // test (each contact within 1e-4 of the largest free velocity) and the natural map.
     let held: Vec<_> = match scene_options.criterion {
         StopCriterion::StepVelocity => {
             [(StopCriterion::Velocity, "velocity test"), (StopCriterion::Natural, "natural map")]

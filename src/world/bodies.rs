@@ -459,9 +459,14 @@ impl Bodies {
 
     /// Kinetic energy of translation and rotation (J).
     pub fn kinetic_energy(&self) -> f64 {
-        let mut e: f64 = (0..self.len()).map(|k| 0.5 * self.mass[k] * self.velocity[k].length_squared()).sum();
+        self.kinetic_energy_of(0..self.len())
+    }
+
+    /// The kinetic energy of the bodies `ks` (J): translation, then rotation when it is on.
+    fn kinetic_energy_of(&self, ks: impl Iterator<Item = usize> + Clone) -> f64 {
+        let mut e: f64 = ks.clone().map(|k| 0.5 * self.mass[k] * self.velocity[k].length_squared()).sum();
         if self.rotation {
-            e += (0..self.len()).map(|k| 0.5 * self.inertia[k] * self.spin[k] * self.spin[k]).sum::<f64>();
+            e += ks.map(|k| 0.5 * self.inertia[k] * self.spin[k] * self.spin[k]).sum::<f64>();
         }
         e
     }
@@ -469,16 +474,10 @@ impl Bodies {
     /// Root-mean-square speed of the moving bodies (m/s), rotation included: `√(2 E / M)` over the
     /// bodies of nonzero inverse mass (a fixed body driven at a speed never counts). Zero when none moves.
     pub fn rms_speed(&self) -> f64 {
-        let moving = || (0..self.len()).filter(|&k| self.inv_mass[k] > 0.0);
-        let mass: f64 = moving().map(|k| self.mass[k]).sum();
-        let twice_energy: f64 = moving()
-            .map(|k| {
-                let spin = if self.rotation { self.inertia[k] * self.spin[k] * self.spin[k] } else { 0.0 };
-                self.mass[k] * self.velocity[k].length_squared() + spin
-            })
-            .sum();
+        let moving = (0..self.len()).filter(|&k| self.inv_mass[k] > 0.0);
+        let mass: f64 = moving.clone().map(|k| self.mass[k]).sum();
         if mass > 0.0 {
-            (twice_energy / mass).sqrt()
+            (2.0 * self.kinetic_energy_of(moving) / mass).sqrt()
         } else {
             0.0
         }
