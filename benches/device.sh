@@ -7,6 +7,8 @@
 # LATTICES=0 leaves out `moreau bench`; SWEEPS=0 the sweep anatomy (`bench --scene`); PEERS_DEVICES=gpu leaves out the CPU rows of the peers;
 # CROSSING=0 the piles of 400-4,000 disks on both devices (where `auto`'s GPU_MIN_BODIES should lie);
 # MIXING=0 the Anderson-against-plain GPU runs; CPU_ROWS=0 the sandbox's CPU runs (a short lease).
+# The pile at rest (target/peers/settled_pile_10k_3000_*.json, from MOREAU_PEERS_WARMUP=3000 cargo
+# bench --bench peers, carried with the binaries) adds its GPU steps and peer table; AT_REST=0 leaves them out.
 # Writes OUT/device.log (every table, with the device each one ran on) and OUT/runs.tgz (each
 # run's steps.csv and summary.json, the peer table and chart).
 set -u
@@ -20,6 +22,8 @@ export XDG_RUNTIME_DIR=/tmp/xdg
 log=$OUT/device.log
 say() { echo "== $* ($(date +%T))" | tee -a "$log"; }
 settled=$(ls target/peers/settled_pile_10k_300_*.json 2>/dev/null | head -1)
+at_rest=$(ls target/peers/settled_pile_10k_3000_*.json 2>/dev/null | head -1)
+[ "${AT_REST:-1}" != 0 ] || at_rest=""
 
 say "machine: $(nproc) cores"
 nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.sm,clocks.max.sm --format=csv 2>&1 | tee -a "$log"
@@ -108,6 +112,22 @@ if [ -n "$PEERS" ] && [ -n "$settled" ]; then
     MOREAU_PEERS_WARMUP=300 MOREAU_PEERS_LEAD=${LEAD:-20} MOREAU_PEERS_STEPS=${STEPS:-10} \
         MOREAU_PEERS_THREADS=$THREADS MOREAU_PEERS_DEVICES=${PEERS_DEVICES:-gpu,cpu} timeout 200 "$PEERS" 2>&1 | tee -a "$log"
     cp target/peers/peers.csv target/peers/peers.png "$OUT/runs/" 2>/dev/null
+fi
+if [ -n "$at_rest" ]; then
+    # The piles of BENCHMARKS "The piles at rest beside rapier2d", on the GPU: the scene's
+    # setting (step-velocity 1e-2, work list) and the two readings of tol 1e-4.
+    for setting in "" "--criterion velocity --tol 1e-4" "--criterion natural --tol 1e-4"; do
+        say "pile_10k at rest (3,000 steps) on the GPU, ${setting:-as the scene sets it}"
+        timeout 60 "$MOREAU" run scenes/pile_10k.toml --restart "$at_rest" --device gpu --steps 30 $setting --quiet \
+            --out "$OUT/runs/rest_pile_gpu_${setting//[^a-z0-9]/}" 2>&1 | grep -v "^warning" | tee -a "$log"
+    done
+    if [ -n "$PEERS" ]; then
+        say "the peer pile at rest: rapier2d, moreau on ${PEERS_DEVICES:-gpu,cpu} ($THREADS threads)"
+        cp -n "$at_rest" "target/peers/settled_pile_10k_3000_$THREADS.json" 2>/dev/null
+        MOREAU_PEERS_WARMUP=3000 MOREAU_PEERS_LEAD=${LEAD:-20} MOREAU_PEERS_STEPS=${STEPS:-10} \
+            MOREAU_PEERS_THREADS=$THREADS MOREAU_PEERS_DEVICES=${PEERS_DEVICES:-gpu,cpu} timeout 200 "$PEERS" 2>&1 | tee -a "$log"
+        cp target/peers/peers.csv "$OUT/runs/peers_at_rest.csv" 2>/dev/null
+    fi
 fi
 find "$OUT/runs" -name '*.vt?' -delete
 tar czf "$OUT/runs.tgz" -C "$OUT" runs && rm -rf "$OUT/runs"

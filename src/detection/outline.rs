@@ -133,7 +133,12 @@ impl Outline<'_> {
             let nearest = |edges: &mut dyn Iterator<Item = usize>| {
                 edges.map(|k| (x.distance(closest(k)), k)).min_by(|p, q| p.0.total_cmp(&q.0))
             };
-            let crossed = nearest(&mut (0..n).filter(|&k| supports(self.outward(k)))).or(nearest(&mut (0..n)));
+            // Only a supported face within the alert distance of the nearest can have been
+            // crossed in the step. Else the nearest it is: a corner just inside a face it does
+            // not support its body on would meet the grain's far side, millimetres deep.
+            let any = nearest(&mut (0..n));
+            let supported = nearest(&mut (0..n).filter(|&k| supports(self.outward(k))));
+            let crossed = supported.filter(|s| any.is_some_and(|a| s.0 <= a.0 + alert)).or(any);
             for k in 0..n {
                 let ((a, b), normal, t) = (self.edge(k), self.outward(k), self.along(k, x));
                 // Signed: near a notch's inner corner, the notch's other side is still ahead.
@@ -382,5 +387,28 @@ mod tests {
         for c in &out {
             assert!((c.normal - DVec2::X).length() < 1e-9 && (c.gap + 1e-5).abs() < 1e-12, "{c:?}");
         }
+    }
+
+    /// A corner just inside a square's top (1e-5), near its right end, of a body tilted 10°
+    /// whose next corner dips below the top beyond that end: the top face is not the one this
+    /// corner supports its body on, and the right face, which it would support, is 0.1 away.
+    /// It meets the top at its own depth, not the far side 0.1 deep (a hexagon's corner met so
+    /// kicked the pile's grains by 0.27 rad in the position projection).
+    #[test]
+    fn a_corner_just_inside_a_face_its_body_does_not_rest_on_does_not_meet_the_far_side() {
+        let square = [DVec2::ZERO, DVec2::X, DVec2::ONE, DVec2::Y];
+        let (tilt, side) = (10f64.to_radians(), 0.4);
+        let (d1, d2) = (DVec2::from_angle(-tilt), DVec2::from_angle(-tilt).perp());
+        let x = DVec2::new(0.9, 1.0 - 1e-5);
+        let tilted = [x, x + side * d1, x + side * (d1 + d2), x + side * d2];
+        let mut out = Vec::new();
+        outline_outline(outline(&tilted), outline(&square), 0.01, &mut out);
+        let corner = |c: &&PolygonContact| c.feature >> 62 == 0 && (c.feature >> 20) & 0xff == 0;
+        let mine: Vec<&PolygonContact> = out.iter().filter(corner).collect();
+        assert_eq!(mine.len(), 1, "{out:?}");
+        assert!(mine[0].feature & 0xff == 2 && (mine[0].gap + 1e-5).abs() < 1e-12, "{mine:?}");
+        assert!((mine[0].normal - DVec2::Y).length() < 1e-12, "{mine:?}");
+        // The square's corner inside the tilted body meets it too, at its true depth.
+        assert!(out.iter().all(|c| c.gap > -0.02), "{out:?}");
     }
 }
