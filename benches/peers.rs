@@ -1,6 +1,6 @@
-//! moreau and rapier2d side by side on the same pile (README "What accuracy costs in time"):
+//! moreau, rapier2d and Box2D v3 side by side on the same pile (README "What accuracy costs in time"):
 //! moreau settles the deposited disks once, with the scene's own solver; every configuration of
-//! both engines starts from that state (positions, velocities, and moreau's warm start), takes
+//! every engine starts from that state (positions, velocities, and moreau's warm start), takes
 //! 100 untimed steps so that its own warm start and overlaps develop (a loose setting lets the
 //! pile sink step by step), then steps on while we time each step and measure, after it and outside the timer, the overlaps of the grains
 //! (moreau's exact detection on each engine's positions, relative to the mean diameter).
@@ -14,7 +14,7 @@
 //! The settled state is kept in target/peers/settled_<scene>_<warmup>_<threads>.json and read
 //! back by the next run of the same scene file. Writes target/peers/peers.csv and peers.svg/.png (largest overlap against milliseconds per
 //! step, one curve per engine). rapier2d is built without its `parallel` feature, so it runs on
-//! one thread; moreau's rows say their thread count, and under a velocity test the bound each
+//! one thread, and Box2D v3 steps with its default single worker; moreau's rows say their thread count, and under a velocity test the bound each
 //! contact was held to: tol times the largest free velocity of the run's steps, or for the
 //! "× g h" rows (the step-velocity test) tol times one step of gravity.
 
@@ -30,7 +30,7 @@ use moreau::io::plots::{write_chart, Chart, Series};
 use moreau::solvers::{Ordering, SolverOptions, StopCriterion};
 use moreau::stepping::{Checkpoint, Simulation};
 use moreau::world::World;
-use scene::{kinetic_energy, penetration, rapier_pile};
+use scene::{kinetic_energy, penetration, PEERS};
 
 #[derive(serde::Serialize)]
 struct Row {
@@ -112,32 +112,34 @@ fn main() {
     let (settled, checkpoint) = settle(&path, load(), warmup, threads);
     let mut rows = Vec::new();
 
-    for iterations in [4usize, 8, 16].into_iter().filter(|i| chosen(&format!("{i} iterations"))) {
-        let mut pile = rapier_pile(&settled, h, iterations).unwrap_or_else(|e| panic!("{e}"));
-        let pile = std::cell::RefCell::new(&mut pile);
-        let (ms, mean, max, contacts, ke) = measure(
-            &first.world,
-            lead,
-            steps,
-            || {
-                let t = Instant::now();
-                pile.borrow_mut().world.step();
-                t.elapsed().as_secs_f64()
-            },
-            || pile.borrow().state(),
-        );
-        eprintln!("rapier2d {iterations} iterations: {ms:.1} ms/step, max overlap {max:.3e} d");
-        rows.push(Row {
-            engine: "rapier2d",
-            setting: format!("{iterations} iterations"),
-            threads: 1,
-            ms_per_step: ms,
-            mean_penetration: mean,
-            max_penetration: max,
-            kinetic_energy: ke,
-            contacts,
-            note: String::new(),
-        });
+    for (engine, passes, build) in PEERS {
+        for setting in [4usize, 8, 16].map(|n| format!("{n} {passes}")).into_iter().filter(|s| chosen(s)) {
+            let n = setting.split(' ').next().and_then(|n| n.parse().ok()).expect("a count of passes");
+            let pile = std::cell::RefCell::new(build(&settled, h, n).unwrap_or_else(|e| panic!("{e}")));
+            let (ms, mean, max, contacts, ke) = measure(
+                &first.world,
+                lead,
+                steps,
+                || {
+                    let t = Instant::now();
+                    pile.borrow_mut().step();
+                    t.elapsed().as_secs_f64()
+                },
+                || pile.borrow().state(),
+            );
+            eprintln!("{engine} {setting}: {ms:.1} ms/step, max overlap {max:.3e} d");
+            rows.push(Row {
+                engine,
+                setting,
+                threads: 1,
+                ms_per_step: ms,
+                mean_penetration: mean,
+                max_penetration: max,
+                kinetic_energy: ke,
+                contacts,
+                note: String::new(),
+            });
+        }
     }
 
     // (setting, tolerance, fixed sweep count, Anderson depth instead of the scene's, focused
@@ -353,9 +355,12 @@ fn report(rows: &[Row], scene: &str, bodies: usize) {
             None => "fixed sweeps",
         }
     }
-    let keys: std::collections::BTreeSet<_> = rows.iter().map(|r| (r.engine, r.threads, family(r))).collect();
+    // The game engines first, so that they take the palette's first, strongest colours.
+    let rank = |engine: &str| scene::PEERS.iter().position(|p| p.0 == engine).unwrap_or(scene::PEERS.len());
+    let keys: std::collections::BTreeSet<_> =
+        rows.iter().map(|r| (rank(r.engine), r.engine, r.threads, family(r))).collect();
     let mut series: Vec<Series> = Vec::new();
-    for (engine, threads, fam) in keys {
+    for (_, engine, threads, fam) in keys {
         let mut points: Vec<(f64, f64)> = rows
             .iter()
             .filter(|r| (r.engine, r.threads, family(r)) == (engine, threads, fam) && r.max_penetration > 0.0)
@@ -364,6 +369,7 @@ fn report(rows: &[Row], scene: &str, bodies: usize) {
         points.sort_by(|a, b| a.0.total_cmp(&b.0));
         let label = match engine {
             "rapier2d" => format!("rapier2d, 4/8/16 iterations, {threads} thread"),
+            "box2d" => format!("Box2D v3, 4/8/16 substeps, {threads} thread"),
             "moreau gpu" => format!("moreau on the GPU, {fam}"),
             _ => format!("moreau, {fam}, {threads} thread(s)"),
         };
