@@ -106,13 +106,17 @@ if [ -z "$BASELINE" ] && [ "${CPU_ROWS:-1}" != 0 ]; then
         --out "$OUT/runs/sandbox_cpu" 2>&1 | tee -a "$log"
 fi
 
-if [ -n "$PEERS" ] && [ -n "$settled" ]; then
-    say "the peer pile: rapier2d, moreau on ${PEERS_DEVICES:-gpu,cpu} ($THREADS threads)"
-    cp -n "$settled" "target/peers/settled_pile_10k_300_$THREADS.json" 2>/dev/null
-    MOREAU_PEERS_WARMUP=300 MOREAU_PEERS_LEAD=${LEAD:-20} MOREAU_PEERS_STEPS=${STEPS:-10} \
+# peer_table WARMUP STATE NAME: the peer benchmark from a settled state (its settling steps, its
+# file), its table into the log and its CSV and chart into runs/ as NAME.csv and NAME.png.
+peer_table() {
+    say "the peer pile after $1 steps: rapier2d, Box2D, moreau on ${PEERS_DEVICES:-gpu,cpu} ($THREADS threads)"
+    cp -n "$2" "target/peers/settled_pile_10k_$1_$THREADS.json" 2>/dev/null
+    MOREAU_PEERS_WARMUP=$1 MOREAU_PEERS_LEAD=${LEAD:-20} MOREAU_PEERS_STEPS=${STEPS:-10} \
         MOREAU_PEERS_THREADS=$THREADS MOREAU_PEERS_DEVICES=${PEERS_DEVICES:-gpu,cpu} timeout 200 "$PEERS" 2>&1 | tee -a "$log"
-    cp target/peers/peers.csv target/peers/peers.png "$OUT/runs/" 2>/dev/null
-fi
+    cp target/peers/peers.csv "$OUT/runs/$3.csv" 2>/dev/null
+    cp target/peers/peers.png "$OUT/runs/$3.png" 2>/dev/null
+}
+[ -n "$PEERS" ] && [ -n "$settled" ] && peer_table 300 "$settled" peers
 if [ -n "$at_rest" ]; then
     # The piles of BENCHMARKS "The piles at rest beside rapier2d", on the GPU: the scene's
     # setting (step-velocity 1e-2, work list) and the two readings of tol 1e-4.
@@ -121,13 +125,7 @@ if [ -n "$at_rest" ]; then
         timeout 60 "$MOREAU" run scenes/pile_10k.toml --restart "$at_rest" --device gpu --steps 30 $setting --quiet \
             --out "$OUT/runs/rest_pile_gpu_${setting//[^a-z0-9]/}" 2>&1 | grep -v "^warning" | tee -a "$log"
     done
-    if [ -n "$PEERS" ]; then
-        say "the peer pile at rest: rapier2d, moreau on ${PEERS_DEVICES:-gpu,cpu} ($THREADS threads)"
-        cp -n "$at_rest" "target/peers/settled_pile_10k_3000_$THREADS.json" 2>/dev/null
-        MOREAU_PEERS_WARMUP=3000 MOREAU_PEERS_LEAD=${LEAD:-20} MOREAU_PEERS_STEPS=${STEPS:-10} \
-            MOREAU_PEERS_THREADS=$THREADS MOREAU_PEERS_DEVICES=${PEERS_DEVICES:-gpu,cpu} timeout 200 "$PEERS" 2>&1 | tee -a "$log"
-        cp target/peers/peers.csv "$OUT/runs/peers_at_rest.csv" 2>/dev/null
-    fi
+    [ -n "$PEERS" ] && peer_table 3000 "$at_rest" peers_at_rest
 fi
 find "$OUT/runs" -name '*.vt?' -delete
 tar czf "$OUT/runs.tgz" -C "$OUT" runs && rm -rf "$OUT/runs"

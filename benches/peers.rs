@@ -113,8 +113,11 @@ fn main() {
     let mut rows = Vec::new();
 
     for (engine, passes, build) in PEERS {
-        for setting in [4usize, 8, 16].map(|n| format!("{n} {passes}")).into_iter().filter(|s| chosen(s)) {
-            let n = setting.split(' ').next().and_then(|n| n.parse().ok()).expect("a count of passes");
+        for n in [4usize, 8, 16] {
+            let setting = format!("{n} {passes}");
+            if !chosen(&setting) {
+                continue;
+            }
             let pile = std::cell::RefCell::new(build(&settled, h, n).unwrap_or_else(|e| panic!("{e}")));
             let (ms, mean, max, contacts, ke) = measure(
                 &first.world,

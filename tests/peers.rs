@@ -9,6 +9,8 @@ use std::path::Path;
 fn the_peer_pile_builds_and_steps_in_moreau_rapier2d_and_box2d() {
     let s = moreau::scene::load(Path::new("scenes/pile.toml")).unwrap();
     let world = s.world.clone();
+    let floor = world.walls.iter().flat_map(|w| w.world_points()).map(|x| x.y).fold(f64::INFINITY, f64::min);
+    let smallest = world.bodies.bounding_radius.iter().copied().fold(f64::INFINITY, f64::min);
     for (engine, _, build) in scene::PEERS {
         let mut pile = build(&world, s.settings.h, 4).unwrap();
         let (p0, _) = pile.state();
@@ -22,8 +24,6 @@ fn the_peer_pile_builds_and_steps_in_moreau_rapier2d_and_box2d() {
         let (p, v) = pile.state();
         assert!(p.iter().zip(&p0).any(|(a, b)| a.y < b.y), "gravity acts in {engine}");
         // The floor holds them: no centre a radius below it (without it, 4.9 cm in these 0.1 s).
-        let floor = world.walls.iter().flat_map(|w| w.world_points()).map(|x| x.y).fold(f64::INFINITY, f64::min);
-        let smallest = world.bodies.bounding_radius.iter().copied().fold(f64::INFINITY, f64::min);
         assert!(p.iter().all(|x| x.y > floor - smallest), "{engine}: a grain fell through the floor");
         let (mean, max, _) = scene::penetration(&world, &p);
         assert!(mean.is_finite() && max.is_finite() && mean <= max, "{engine}: {mean} {max}");

@@ -338,11 +338,11 @@ fn outran_reach(before: &Snapshot, world: &World, alert: f64, reach: &[f64]) -> 
 /// a step into its neighbour, unseen; past a turn of √slack radians the end of the step is
 /// detected again and the projection reads the true gaps. Disks and clumps keep first order.
 fn polygon_turned(before: &Snapshot, world: &World, slack: f64) -> bool {
-    let b = &world.bodies;
+    let (b, limit) = (&world.bodies, slack.sqrt());
     !b.polygons.is_empty()
         && (0..b.len()).any(|k| {
             matches!(b.shape[k], BodyShape::Polygon(_))
-                && before.angle.get(k).zip(b.angle.get(k)).is_some_and(|(a0, a1)| (a1 - a0).abs() > slack.sqrt())
+                && before.angle.get(k).zip(b.angle.get(k)).is_some_and(|(a0, a1)| (a1 - a0).abs() > limit)
         })
 }
 
