@@ -1,7 +1,7 @@
 //! `moreau run SCENE`: simulate a scene file and write its outputs.
 
 use std::path::PathBuf;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -325,6 +325,7 @@ impl PerStep {
         summary: &mut RunSummary,
         bar: &ProgressBar,
     ) -> Result<()> {
+        let start = Instant::now();
         output.record(report, &sim.measures())?;
         output.record_driven(sim)?;
         if self.wall_forces {
@@ -371,6 +372,7 @@ impl PerStep {
             let frame = crate::io::picture::Frame::of(sim);
             crate::io::picture::write_png(&frame, crate::io::picture::Colouring::Tag, 1200, &path)?;
         }
+        summary.output_seconds += start.elapsed().as_secs_f64();
         Ok(())
     }
 }

@@ -118,10 +118,13 @@ pub struct RunSummary {
     pub bodies: usize,
     /// Steps run.
     pub steps: usize,
-    /// Wall time of the run (s).
+    /// Time in the steps (s).
     pub seconds: f64,
-    /// Steps per second of wall time.
+    /// Steps per second in the steps.
     pub steps_per_second: f64,
+    /// Time writing after each step (s): steps.csv with its measures, VTK, checkpoints, the
+    /// picture. With the steps, the run's wall time but for loading the scene.
+    pub output_seconds: f64,
     /// Time in the solves (s).
     pub solve_seconds: f64,
     /// Time in detection (s).
@@ -226,13 +229,14 @@ impl RunSummary {
     pub fn line(&self) -> String {
         let total: usize = self.iterations.iter().sum();
         format!(
-            "{}: {} steps in {:.3} s ({:.1} steps/s; solve {:.0} %, projection {:.0} %), device {} ({} threads), {} tol {:.0e}: {}/{} steps converged (max error {:.2e}{}), iterations mean {:.1} median {} p95 {} max {} ({} at max_iter{}), contacts mean {:.0}, max penetration {:.2e} of the mean diameter, final kinetic energy {:.3e}",
+            "{}: {} steps in {:.3} s ({:.1} steps/s; solve {:.0} %, projection {:.0} %) and {:.3} s of outputs, device {} ({} threads), {} tol {:.0e}: {}/{} steps converged (max error {:.2e}{}), iterations mean {:.1} median {} p95 {} max {} ({} at max_iter{}), contacts mean {:.0}, max penetration {:.2e} of the mean diameter, final kinetic energy {:.3e}",
             self.scene,
             self.steps,
             self.seconds,
             self.steps_per_second,
             100.0 * self.solve_seconds / self.seconds.max(1e-12),
             100.0 * self.projection_seconds / self.seconds.max(1e-12),
+            self.output_seconds,
             self.device,
             self.threads,
             self.solver,
