@@ -10,8 +10,10 @@ use crate::backend::Backend;
 use crate::gpu::timing::{block_round_time, kernel_times, nlgs_sweep_times};
 use crate::gpu::GpuContext;
 use crate::problem::generate::lattice_packing;
+use crate::problem::residual::problem_error;
 use crate::problem::ContactProblem;
 use crate::solvers::jacobi::jacobi_update;
+use crate::solvers::stopping::JudgedMeasure;
 use crate::solvers::{solve, SolverKind, SolverOptions};
 use crate::stepping::Simulation;
 
@@ -217,6 +219,17 @@ fn scene_bench(path: &Path, a: &BenchArgs) -> Result<()> {
             let sweep_opts = SolverOptions { tol: 1e-300, max_iter: a.sweeps, ..opts.clone() };
             let sweeps = crate::solvers::solve(p, SolverKind::Nlgs, &sweep_opts, None);
             let sweep = sweeps.seconds / a.sweeps as f64;
+            // A full check as a solve's cadence makes it, on the swept impulses: a product, the
+            // error and the measure the scene's criterion judges.
+            let measure = JudgedMeasure::new(p, opts.criterion);
+            let start = Instant::now();
+            for _ in 0..a.repeats {
+                p.w.apply(&sweeps.r, &mut u);
+                u.iter_mut().zip(&p.q).for_each(|(u, q)| *u += q);
+                let error = problem_error(p, &sweeps.r, &u);
+                std::hint::black_box(measure.of(p, &sweeps.r, &u, error));
+            }
+            let check = start.elapsed().as_secs_f64() / a.repeats as f64;
             Ok(SceneRow {
                 threads: t,
                 contacts: contacts / a.steps,
@@ -226,18 +239,19 @@ fn scene_bench(path: &Path, a: &BenchArgs) -> Result<()> {
                 product_ms: 1e3 * product,
                 colouring_ms: [1e3 * fresh, 1e3 * repair],
                 sweep_ms: 1e3 * sweep,
+                check_ms: 1e3 * check,
                 updates_per_s: nc as f64 / sweep,
             })
         })?;
         rows.push(row);
     }
     println!("scene {} ({} steps timed per thread count; products and sweeps on one problem)", path.display(), a.steps);
-    println!("| threads | contacts | ms/step | detection ms | sweeps/step | W product ms | colouring ms: fresh, repaired | NLGS sweep ms | contact updates/s | sweep speed-up |");
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!("| threads | contacts | ms/step | detection ms | sweeps/step | W product ms | colouring ms: fresh, repaired | NLGS sweep ms | full check ms (sweeps) | contact updates/s | sweep speed-up |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     let base = rows[0].sweep_ms;
     for r in &rows {
         println!(
-            "| {} | {} | {:.1} | {:.2} | {:.1} | {:.3} | {:.3}, {:.3} | {:.3} | {:.2e} | {:.2}x |",
+            "| {} | {} | {:.1} | {:.2} | {:.1} | {:.3} | {:.3}, {:.3} | {:.3} | {:.3} ({:.2}) | {:.2e} | {:.2}x |",
             r.threads,
             r.contacts,
             r.step_ms,
@@ -247,6 +261,8 @@ fn scene_bench(path: &Path, a: &BenchArgs) -> Result<()> {
             r.colouring_ms[0],
             r.colouring_ms[1],
             r.sweep_ms,
+            r.check_ms,
+            r.check_ms / r.sweep_ms,
             r.updates_per_s,
             base / r.sweep_ms
         );
@@ -368,5 +384,7 @@ struct SceneRow {
     /// A fresh colouring, and the repair of one whose contacts are all kept.
     colouring_ms: [f64; 2],
     sweep_ms: f64,
+    /// A full check: a product, the error and the judged measure.
+    check_ms: f64,
     updates_per_s: f64,
 }

@@ -130,9 +130,10 @@ pub fn refuse_unbounded(problem: &ContactProblem, report: &mut SolveReport) {
     }
 }
 
-/// A full check costs about one `W` product (plus the residual, a fraction of one). Checking once
-/// this many product-equivalents of work keeps checks at ≤ 10 % of a solve; a Gauss–Seidel sweep
-/// counts as one product-equivalent, so NLGS is checked at least every 10 sweeps.
+/// Checking once this many product-equivalents of work keeps checks at ≤ 10 % of a solve; a
+/// Gauss–Seidel sweep counts as one, so NLGS is checked at least every 10 sweeps. A full check is
+/// a product and the error's passes, and costs about a sweep: `moreau bench --scene` measured
+/// 1.00 sweep on the 10,000-disk pile and 1.12–1.16 on the 40,000 (one and two threads).
 pub const CHECK_WORK: usize = 10;
 
 /// Decides when the full error is due, by work done since the last check.
