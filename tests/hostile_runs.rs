@@ -259,6 +259,13 @@ fn nothing_is_silently_accepted() {
     assert!(o.status.success(), "{}", stderr(&o));
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(out.contains("no GPU rows: rolling resistance"), "{out}");
+    // Its full check of the error is timed beside the sweep, and given in sweeps too.
+    let row = out.lines().find(|l| l.starts_with("| 1 |")).expect("the one-thread row");
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    let sweep: f64 = cells[8].parse().unwrap();
+    let (check, in_sweeps) = cells[9].split_once(" (").expect("a check and its share of a sweep");
+    let (check, in_sweeps): (f64, f64) = (check.parse().unwrap(), in_sweeps.trim_end_matches(')').parse().unwrap());
+    assert!(check > 0.0 && check.is_finite() && (in_sweeps - check / sweep).abs() <= 0.01 + 0.01 * in_sweeps, "{row}");
     let o = moreau()
         .args([
             "sweep",

@@ -224,8 +224,7 @@ fn scene_bench(path: &Path, a: &BenchArgs) -> Result<()> {
             let measure = JudgedMeasure::new(p, opts.criterion);
             let start = Instant::now();
             for _ in 0..a.repeats {
-                p.w.apply(&sweeps.r, &mut u);
-                u.iter_mut().zip(&p.q).for_each(|(u, q)| *u += q);
+                p.velocity_into(&sweeps.r, &mut u);
                 let error = problem_error(p, &sweeps.r, &u);
                 std::hint::black_box(measure.of(p, &sweeps.r, &u, error));
             }

@@ -133,7 +133,8 @@ pub fn refuse_unbounded(problem: &ContactProblem, report: &mut SolveReport) {
 /// Checking once this many product-equivalents of work keeps checks at ≤ 10 % of a solve; a
 /// Gauss–Seidel sweep counts as one, so NLGS is checked at least every 10 sweeps. A full check is
 /// a product and the error's passes, and costs about a sweep: `moreau bench --scene` measured
-/// 1.00 sweep on the 10,000-disk pile and 1.12–1.16 on the 40,000 (one and two threads).
+/// 0.96–1.11 sweeps on the 10,000-disk pile and 1.12–1.21 on the 40,000 (one and two threads,
+/// two runs).
 pub const CHECK_WORK: usize = 10;
 
 /// Decides when the full error is due, by work done since the last check.
