@@ -61,6 +61,15 @@ pub fn chunked_sums<const M: usize>(n: usize, term: impl Fn(usize) -> [f64; M] +
     std::array::from_fn(|m| partials.iter().map(|p| p[m]).sum())
 }
 
+/// `max(0, term(0), …, term(n − 1))`, NaN terms left out, on threads when `n` is large: a maximum
+/// is the same in any order, so the same value for any thread count.
+pub fn max_over(n: usize, term: impl Fn(usize) -> f64 + Sync + Send) -> f64 {
+    match parallel(n) {
+        true => (0..n).into_par_iter().with_min_len(CHUNK).map(term).reduce(|| 0.0, f64::max),
+        false => (0..n).map(term).fold(0.0, f64::max),
+    }
+}
+
 /// `[f(0), …, f(n − 1)]`, on threads when `n` is large: each item its own, in order, so the
 /// same values for any thread count.
 pub fn map_indices<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync + Send) -> Vec<T> {

@@ -7,10 +7,9 @@
 //! answer (CPU PCPG 24 iterations; the GPU's f32 stalls at 2.7e-4).
 
 use super::cone::natural_map;
-use rayon::prelude::*;
 
 use super::{ContactProblem, Mat2};
-use crate::parallel::{chunked_sums, parallel, CHUNK};
+use crate::parallel::{chunked_sums, max_over};
 
 /// Error of `r` given `u = W r + q` (no operator product).
 /// Sums run in fixed chunks ([`chunked_sums`]): the same bits on any number of threads.
@@ -132,12 +131,7 @@ pub fn velocity_error_scaled(diag: &[Mat2], mu: &[f64], rolling: &[f64], scale: 
         let roll = rolling.get(a).map(|&eta| (eta, r[2 * nc + a], u[2 * nc + a]));
         contact_velocity_residual(diag[a][0], [r[2 * a], r[2 * a + 1]], [u[2 * a], u[2 * a + 1]], mu[a], roll)
     };
-    // A maximum is the same whatever the order: threads change nothing.
-    let worst = if parallel(nc) {
-        (0..nc).into_par_iter().with_min_len(CHUNK).map(residual).reduce(|| 0.0, f64::max)
-    } else {
-        (0..nc).map(residual).fold(0.0, f64::max)
-    };
+    let worst = max_over(nc, residual);
     if scale > f64::EPSILON {
         worst / scale
     } else {
@@ -180,7 +174,7 @@ pub fn contact_velocity_residual_squared(
 /// contact stops); an answer to a problem with no answer has it near 1 however small its
 /// relative error: its impulses grow, cancel, and stop nothing. Invariant under scaling `r`.
 pub fn loaded_approach(q: &[f64], gap_rate: &[f64], nc: usize, r: &[f64], u: &[f64]) -> f64 {
-    let largest = (0..nc).map(|a| r[2 * a]).filter(|x| x.is_finite()).fold(0.0, f64::max);
+    let largest = max_over(nc, |a| if r[2 * a].is_finite() { r[2 * a] } else { 0.0 });
     let scale = free_velocity_bound(&q[..2 * nc], gap_rate);
     if largest <= 0.0 || scale <= 0.0 || !scale.is_finite() {
         return 0.0;
@@ -196,7 +190,7 @@ pub fn loaded_approach(q: &[f64], gap_rate: &[f64], nc: usize, r: &[f64], u: &[f
 /// The largest entry of `q` with each contact's gap term (`gap_rate`, empty when none) taken off
 /// its normal entry: the largest velocity the step's free motion gives any contact.
 pub fn free_velocity_bound(q: &[f64], gap_rate: &[f64]) -> f64 {
-    (0..q.len()).map(|k| (q[k] - gap_term(gap_rate, k)).abs()).fold(0.0, f64::max)
+    max_over(q.len(), |k| (q[k] - gap_term(gap_rate, k)).abs())
 }
 
 /// The gap term in entry `k` of `q` (interleaved pairs, then rolling rows): contact `k/2`'s
