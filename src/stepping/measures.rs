@@ -63,10 +63,11 @@ pub struct Measures {
 
 /// What [`Simulation::measures`] reads from the contacts in its one pass over them.
 struct ContactSums {
-    /// Each body's active contacts (normal impulse > 0).
+    /// Each moving body's active contacts (normal impulse > 0).
     active: Vec<usize>,
-    /// Distinct (grain, what it touches) pairs over the grains with at least two.
-    neighbours: usize,
+    /// The pair of each active contact that repeats its pair's previous one (a double contact's
+    /// second), as (lower body, what it touches).
+    repeats: Vec<(usize, Antagonist)>,
     /// `Σ ℓx fx, Σ ℓy fy, Σ (ℓx fy + ℓy fx) / 2` over the active contacts' moving grains, then
     /// `Σ nx², Σ ny², Σ nx ny` and their count over the active contacts between two moving grains.
     sums: [f64; 7],
@@ -82,13 +83,26 @@ impl Simulation {
         }
         let area = self.occupied_area(&grains);
         let grain_area: f64 = grains.iter().map(|&k| self.grain_area(k)).sum();
-        let ContactSums { active, neighbours, sums } = self.contact_sums();
+        let ContactSums { active, repeats, sums } = self.contact_sums();
         let [sxx, syy, sxy, fxx, fyy, fxy, between_grains] = sums;
         let fabric = match between_grains {
             0.0 => [0.0; 3],
             n => [fxx / n, fyy / n, fxy / n],
         };
         let carrying: Vec<usize> = grains.iter().map(|&k| active[k]).filter(|&a| a >= 2).collect();
+        // Each grain's distinct antagonists: its active contacts less the repeated pairs.
+        let repeated = repeats
+            .iter()
+            .flat_map(|&(i, other)| {
+                let j = match other {
+                    Antagonist::Body(j) => Some(j),
+                    Antagonist::Wall(_) => None,
+                };
+                std::iter::once(i).chain(j)
+            })
+            .filter(|&k| active[k] >= 2)
+            .count();
+        let neighbours = carrying.iter().sum::<usize>() - repeated;
         let per_area = |x: f64| if area > 0.0 { x / area } else { 0.0 };
         Measures {
             packing_fraction: per_area(grain_area),
@@ -109,12 +123,12 @@ impl Simulation {
         }
     }
 
-    /// One pass over the last step's contacts: each body's active contacts, the distinct (grain,
-    /// what it touches) pairs summed over the grains with at least two, and the stress and
-    /// fabric sums ([`ContactSums`]). Two contacts of one pair (a double contact) make one such
-    /// pair for each of its grains; detection lists a pair's contacts together, so they are
-    /// found side by side (a list in another order has its pairs sorted first). A sort of every
-    /// pair and two more passes over the contacts cost a quarter of a 40,000-disk step at rest.
+    /// One pass over the last step's contacts: each moving body's active contacts, the repeated
+    /// pairs, and the stress and fabric sums ([`ContactSums`]). Two contacts of one pair (a double
+    /// contact) make one neighbour for each of its grains; detection lists a pair's contacts
+    /// together, so they are found side by side (a list in another order has its pairs sorted
+    /// first). A sort of every pair and two more passes over the contacts cost a quarter of a
+    /// 40,000-disk step at rest.
     fn contact_sums(&self) -> ContactSums {
         let b = &self.world.bodies;
         let moving = |k: usize| b.inv_mass[k] > 0.0;
@@ -155,19 +169,7 @@ impl Simulation {
             keys.sort_unstable();
             repeats = keys.windows(2).filter(|w| w[0] == w[1]).map(|w| w[1]).collect();
         }
-        let carrying = |k: usize| moving(k) && active[k] >= 2;
-        let entries: usize = (0..b.len()).filter(|&k| carrying(k)).map(|k| active[k]).sum();
-        let repeated: usize = repeats
-            .iter()
-            .map(|&(i, other)| {
-                let j = match other {
-                    Antagonist::Body(j) => usize::from(carrying(j)),
-                    Antagonist::Wall(_) => 0,
-                };
-                usize::from(carrying(i)) + j
-            })
-            .sum();
-        ContactSums { neighbours: entries - repeated, active, sums }
+        ContactSums { active, repeats, sums }
     }
 
     /// Grain `k`'s area, from its mass and its material's density.
