@@ -125,10 +125,14 @@ fn detect(
         pass_through: world.materials.any_pass_through().then_some(&world.materials),
     };
     let mut detected = detector.detect(b, &config, &world.walls, alert, reach, wall_reach);
-    detected.retain(|c| match c.other {
-        Antagonist::Body(j) => b.inv_mass[c.i] > 0.0 || b.inv_mass[j] > 0.0,
-        Antagonist::Wall(_) => b.inv_mass[c.i] > 0.0,
-    });
+    // Pairs of fixed bodies, when there are fixed bodies (detection drops a fixed body's walls):
+    // a pass over every contact otherwise for nothing, 7 MB a step on the 40,000-disk pile.
+    if b.inv_mass.contains(&0.0) {
+        detected.retain(|c| match c.other {
+            Antagonist::Body(j) => b.inv_mass[c.i] > 0.0 || b.inv_mass[j] > 0.0,
+            Antagonist::Wall(_) => b.inv_mass[c.i] > 0.0,
+        });
+    }
     detected
 }
 
