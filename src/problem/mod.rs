@@ -188,17 +188,17 @@ impl ContactProblem {
         let bodies = match &self.w {
             Delassus::MatrixFree(op) => {
                 let v = op.body_velocities(r);
-                op.contact_velocities(&v, u);
+                op.contact_velocities_plus(&v, Some(&self.q), u);
                 Some(v)
             }
             Delassus::Sparse(s) => {
                 s.apply(r, u);
+                for (ui, qi) in u.iter_mut().zip(&self.q) {
+                    *ui += qi;
+                }
                 None
             }
         };
-        for (ui, qi) in u.iter_mut().zip(&self.q) {
-            *ui += qi;
-        }
         bodies
     }
 

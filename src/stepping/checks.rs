@@ -196,7 +196,9 @@ pub fn check_overlaps(
     world: &World,
 ) -> Result<(), String> {
     let size = |c: &DetectedContact| pair_size(&world.bodies, c);
-    let pressed = |(a, c): &(usize, &DetectedContact)| gaps[*a] < target[*a] - slack.max(1e-3) * size(c);
+    // The pair's size only where the pair ends below its target at all.
+    let pressed =
+        |(a, c): &(usize, &DetectedContact)| gaps[*a] < target[*a] && gaps[*a] < target[*a] - slack.max(1e-3) * size(c);
     let deepest = contacts
         .iter()
         .enumerate()

@@ -87,7 +87,8 @@ pub(super) fn project_positions(
     let b = &world.bodies;
     let size = |c: &DetectedContact| pair_size(b, c);
     let excess = |a: usize| targets[a] - gaps[a];
-    let deeper = (0..contacts.len()).filter(|&a| excess(a) > slack * size(&contacts[a])).count();
+    // The pair's size (two random reads) only where the pair ended deeper than its target at all.
+    let deeper = (0..contacts.len()).filter(|&a| excess(a) > 0.0 && excess(a) > slack * size(&contacts[a])).count();
     if deeper == 0 {
         return (0, (0, 0));
     }
