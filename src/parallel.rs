@@ -61,6 +61,30 @@ pub fn chunked_sums<const M: usize>(n: usize, term: impl Fn(usize) -> [f64; M] +
     std::array::from_fn(|m| partials.iter().map(|p| p[m]).sum())
 }
 
+/// [`chunked_sums`] of `term(k, x_k)` over `k < n`, where `x_k = out[per k .. per (k + 1)]` is
+/// written by `fill(first, part)` chunk by chunk just before the chunk's terms are taken: a pass
+/// that makes values and one that sums terms of them become one pass, the values still in cache,
+/// with the same sums to the bit as the two passes.
+pub fn fill_and_sum<const M: usize>(
+    n: usize,
+    (out, per): (&mut [f64], usize),
+    fill: impl Fn(usize, &mut [f64]) + Sync,
+    term: impl Fn(usize, &[f64]) -> [f64; M] + Sync,
+) -> [f64; M] {
+    let chunk = |(c, part): (usize, &mut [f64])| {
+        let first = c * CHUNK;
+        fill(first, part);
+        let part = &*part;
+        lane_sums(first, (first + CHUNK).min(n), |k| term(k, &part[per * (k - first)..per * (k - first + 1)]))
+    };
+    let out = &mut out[..per * n];
+    let partials: Vec<[f64; M]> = match parallel(n) {
+        true => out.par_chunks_mut(per * CHUNK).enumerate().map(chunk).collect(),
+        false => out.chunks_mut(per * CHUNK).enumerate().map(chunk).collect(),
+    };
+    std::array::from_fn(|m| partials.iter().map(|p| p[m]).sum())
+}
+
 /// `max(0, term(0), …, term(n − 1))`, NaN terms left out, on threads when `n` is large: a maximum
 /// is the same in any order, so the same value for any thread count.
 pub fn max_over(n: usize, term: impl Fn(usize) -> f64 + Sync + Send) -> f64 {

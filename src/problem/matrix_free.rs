@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use super::colouring::Colouring;
 use super::{BlockSparse, Mat2};
-use crate::parallel::{first_failure, map_indices, parallel, CHUNK};
+use crate::parallel::{fill_and_sum, first_failure, map_indices, parallel, CHUNK};
 
 /// Contact ranges `(first, end)` by colour: blocks of one colour share no moving body.
 pub type BlockColours = Vec<Vec<(usize, usize)>>;
@@ -833,6 +833,26 @@ impl MatrixFree {
         } else {
             gather(0, out);
         }
+    }
+
+    /// `out = B v + q` as [`Self::contact_velocities_plus`] makes it (no rolling rows), and the
+    /// [`fill_and_sum`] of `term(a, u_a)` over the contacts, each taken as its chunk is made.
+    pub fn contact_velocities_summing<const M: usize>(
+        &self,
+        v: &[f64],
+        q: &[f64],
+        out: &mut [f64],
+        term: impl Fn(usize, [f64; 2]) -> [f64; M] + Sync,
+    ) -> [f64; M] {
+        assert!(!self.has_rolling(), "the pairs' gather only");
+        let gather = |first: usize, part: &mut [f64]| {
+            for (k, o) in part.chunks_exact_mut(2).enumerate() {
+                let (a, u) = (first + k, self.gather_one(first + k, v));
+                o[0] = u[0] + q[2 * a];
+                o[1] = u[1] + q[2 * a + 1];
+            }
+        };
+        fill_and_sum(self.rows.len(), (out, 2), gather, |a, u| term(a, [u[0], u[1]]))
     }
 
     /// `out = W r`: a scatter to the bodies and a gather back.

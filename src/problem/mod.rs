@@ -202,6 +202,25 @@ impl ContactProblem {
         bodies
     }
 
+    /// `u = W r + q` into `u`, `M⁻¹ Bᵀ r` as [`Self::velocity_keeping_bodies`] returns it, and the
+    /// [`residual::problem_error`] of `(r, u)`: for a matrix-free problem without rolling rows the
+    /// error's terms are taken as the gather makes `u`, in one pass (the same bits as two).
+    pub fn velocity_and_error(&self, r: &[f64], u: &mut [f64]) -> (Option<Vec<f64>>, f64) {
+        match &self.w {
+            Delassus::MatrixFree(op) if !self.has_rolling() => {
+                let v = op.body_velocities(r);
+                let data = (&self.q[..], &self.mu[..], &self.gap_rate[..], r);
+                let sums = op.contact_velocities_summing(&v, &self.q, u, |a, ua| residual::natural_terms(data, a, ua));
+                let error = residual::natural_error_of(sums).unwrap_or_else(|| residual::problem_error(self, r, u));
+                (Some(v), error)
+            }
+            _ => {
+                let v = self.velocity_keeping_bodies(r, u);
+                (v, residual::problem_error(self, r, u))
+            }
+        }
+    }
+
     /// Whether every contact is frictionless, so solvers may drop the tangential rows.
     pub fn is_frictionless(&self) -> bool {
         self.mu.iter().all(|&m| m == 0.0)

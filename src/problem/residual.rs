@@ -31,38 +31,46 @@ pub fn natural_map_error_rolling(q: &[f64], mu: &[f64], rolling: &[f64], r: &[f6
 /// of 1 m disks with an alert of 5 % of a radius, ‖q‖ was 222 against 0.23 without them).
 pub fn natural_map_error_gapped(q: &[f64], mu: &[f64], rolling: &[f64], gap_rate: &[f64], r: &[f64], u: &[f64]) -> f64 {
     let nc = mu.len();
-    let roll = |a: usize| {
+    // The residual and the three norms in one pass over the contacts.
+    let sums = chunked_sums(nc, |a| {
+        let pair = natural_terms((q, mu, gap_rate, r), a, [u[2 * a], u[2 * a + 1]]);
         if rolling.is_empty() {
-            return 0.0;
+            return pair;
         }
         let (rr, bound) = (r[2 * nc + a], rolling[a] * r[2 * a].max(0.0));
         let f = rr - (rr - u[2 * nc + a]).clamp(-bound, bound);
-        f * f
-    };
-    let norm_term = |x: &[f64], gap: &[f64], a: usize| {
-        let tail = if rolling.is_empty() { 0.0 } else { x[2 * nc + a] * x[2 * nc + a] };
-        let normal = x[2 * a] - gap.get(a).copied().unwrap_or(0.0);
-        normal * normal + x[2 * a + 1] * x[2 * a + 1] + tail
-    };
-    // The residual and the three norms in one pass over the contacts.
-    let [sum, q_norm, r_norm, u_norm] = chunked_sums(nc, |a| {
-        let f = natural_map([r[2 * a], r[2 * a + 1]], [u[2 * a], u[2 * a + 1]], mu[a]);
-        [
-            f[0] * f[0] + f[1] * f[1] + roll(a),
-            norm_term(q, gap_rate, a),
-            norm_term(r, &[], a),
-            norm_term(u, gap_rate, a),
-        ]
+        let tail = |x: &[f64]| x[2 * nc + a] * x[2 * nc + a];
+        [pair[0] + f * f, pair[1] + tail(q), pair[2] + tail(r), pair[3] + tail(u)]
     });
+    natural_error_of(sums).unwrap_or_else(|| {
+        rescaled([q, gap_rate, r, u], |[q, gap, r, u]| natural_map_error_gapped(q, mu, rolling, gap, r, u))
+    })
+}
+
+/// Contact `a`'s share of [`natural_map_error_gapped`] without a rolling row, its velocity `u`:
+/// its squared residual, then its entries' squares in the norms of `q`, `r` and `u` (the gap term
+/// taken off `q_n` and `u_n`).
+#[inline]
+pub fn natural_terms((q, mu, gap_rate, r): (&[f64], &[f64], &[f64], &[f64]), a: usize, u: [f64; 2]) -> [f64; 4] {
+    let f = natural_map([r[2 * a], r[2 * a + 1]], u, mu[a]);
+    let gap = gap_rate.get(a).copied().unwrap_or(0.0);
+    let (qn, un) = (q[2 * a] - gap, u[0] - gap);
+    [
+        f[0] * f[0] + f[1] * f[1],
+        qn * qn + q[2 * a + 1] * q[2 * a + 1],
+        r[2 * a] * r[2 * a] + r[2 * a + 1] * r[2 * a + 1],
+        un * un + u[1] * u[1],
+    ]
+}
+
+/// The natural-map error from the sums of [`natural_terms`] (residual, `‖q‖²`, `‖r‖²`, `‖u‖²`);
+/// `None` when they overflowed, for the caller to sum again rescaled.
+pub fn natural_error_of([sum, q_norm, r_norm, u_norm]: [f64; 4]) -> Option<f64> {
     let scale = q_norm.sqrt().max(r_norm.sqrt()).max(u_norm.sqrt());
     if !(sum.is_finite() && scale.is_finite()) {
-        return rescaled([q, gap_rate, r, u], |[q, gap, r, u]| natural_map_error_gapped(q, mu, rolling, gap, r, u));
+        return None;
     }
-    if scale > f64::EPSILON {
-        sum.sqrt() / scale
-    } else {
-        sum.sqrt()
-    }
+    Some(if scale > f64::EPSILON { sum.sqrt() / scale } else { sum.sqrt() })
 }
 
 /// `error` of `(q, gap_rate, r, u)` all divided by the same power of two, the one that brings
@@ -205,6 +213,36 @@ pub fn gap_term(gap_rate: &[f64], k: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The error taken as the product's gather makes `u` (one pass) is the product and then the
+    /// error (two passes), to the bit, `u` and `M⁻¹ Bᵀ r` included: on one thread and on four, with
+    /// gap terms, and for impulses of 1e300 whose sums overflow (the rescaled path).
+    #[test]
+    fn the_error_made_with_the_product_is_the_error_after_it() {
+        let p = super::super::generate::lattice_packing(70, 70, 0.4, 3);
+        let nc = p.n_contacts();
+        assert!(nc > 2 * crate::parallel::PARALLEL_MIN, "{nc} contacts: the threaded path");
+        let gaps: Vec<f64> = (0..nc).map(|a| if a % 5 == 0 { 0.01 * (a % 7) as f64 } else { 0.0 }).collect();
+        let p = p.with_gap_rates(gaps).expect("gap rates");
+        let r: Vec<f64> = (0..2 * nc).map(|k| ((k as f64) * 0.71).sin() + if k % 2 == 0 { 0.5 } else { 0.0 }).collect();
+        for scale in [1.0, 1e300] {
+            let r: Vec<f64> = r.iter().map(|x| x * scale).collect();
+            for threads in [1, 4] {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                let (mut two, mut one) = (vec![0.0; 2 * nc], vec![0.0; 2 * nc]);
+                let ((v2, e2), (v1, e1)) = pool.install(|| {
+                    let v = p.velocity_keeping_bodies(&r, &mut two);
+                    ((v, problem_error(&p, &r, &two)), p.velocity_and_error(&r, &mut one))
+                });
+                let bits = |x: &[f64]| x.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                let at = format!("scale {scale:e}, {threads} thread(s)");
+                assert_eq!(e1.to_bits(), e2.to_bits(), "{at}: {e1} against {e2}");
+                assert!(e1.is_finite() && e1 > 0.0, "{at}: {e1}");
+                assert_eq!(bits(&one), bits(&two), "{at}: u");
+                assert_eq!(v1.map(|v| bits(&v)), v2.map(|v| bits(&v)), "{at}: M⁻¹ Bᵀ r");
+            }
+        }
+    }
 
     /// Two contacts pressed with impulses of 1.5e154 (‖r‖² overflows) while both separate at
     /// 1e150: each residual is `u`, so the error is 1e150 / 1.5e154. It was 0 (`finite / inf`):

@@ -235,17 +235,17 @@ impl<'a> Monitor<'a> {
         let t = Instant::now();
         let mut uu = std::mem::take(&mut self.scratch_u);
         let own_product = u.is_none();
-        let u = match u {
-            Some(u) => u,
+        let (u, err) = match u {
+            Some(u) => (u, problem_error(self.problem, r, u)),
             None => {
-                self.scratch_body_velocity = self.problem.velocity_keeping_bodies(r, &mut uu);
+                let (v, err) = self.problem.velocity_and_error(r, &mut uu);
+                self.scratch_body_velocity = v;
                 if !excluded {
                     self.w_products += 1;
                 }
-                &uu
+                (&uu[..], err)
             }
         };
-        let err = problem_error(self.problem, r, u);
         let judged = self.judged(r, u, err);
         self.scratch_u = uu;
         self.scratch_check = own_product.then_some((self.iteration, err, judged));
