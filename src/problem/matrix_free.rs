@@ -817,17 +817,7 @@ impl MatrixFree {
         for (a, u) in rolling.iter_mut().enumerate() {
             *u = plus(self.gather_rolling(a, v), 2 * nc + a);
         }
-        // Entry by entry, not through `copy_from_slice`: on a slice of unknown length that was a
-        // call to `memmove` for each contact (a product on 81,000 contacts took 1.3 ms, 0.95
-        // without it, one thread).
-        let gather = |first: usize, out: &mut [f64]| {
-            for (k, o) in out.chunks_exact_mut(2).enumerate() {
-                let a = first + k;
-                let u = self.gather_one(a, v);
-                o[0] = plus(u[0], 2 * a);
-                o[1] = plus(u[1], 2 * a + 1);
-            }
-        };
+        let gather = |first: usize, out: &mut [f64]| self.gather_pairs(first, v, plus, out);
         if parallel(self.rows.len()) {
             out.par_chunks_mut(2 * CHUNK).enumerate().for_each(|(c, o)| gather(c * CHUNK, o));
         } else {
@@ -845,14 +835,24 @@ impl MatrixFree {
         term: impl Fn(usize, [f64; 2]) -> [f64; M] + Sync,
     ) -> [f64; M] {
         assert!(!self.has_rolling(), "the pairs' gather only");
-        let gather = |first: usize, part: &mut [f64]| {
-            for (k, o) in part.chunks_exact_mut(2).enumerate() {
-                let (a, u) = (first + k, self.gather_one(first + k, v));
-                o[0] = u[0] + q[2 * a];
-                o[1] = u[1] + q[2 * a + 1];
-            }
-        };
+        let gather = |first: usize, part: &mut [f64]| self.gather_pairs(first, v, |x, k| x + q[k], part);
         fill_and_sum(self.rows.len(), (out, 2), gather, |a, u| term(a, [u[0], u[1]]))
+    }
+
+    /// The (n, t) velocities of contacts `first..` into `out`, a pair each, entry `k` of `B v`
+    /// passed through `plus(x, k)` (where a caller adds `q`). Always inlined: as a call of its own
+    /// (`#[inline]` was not enough) the plain product took 0.30 ms on 20,321 contacts, 0.23 inlined.
+    #[inline(always)]
+    fn gather_pairs(&self, first: usize, v: &[f64], plus: impl Fn(f64, usize) -> f64, out: &mut [f64]) {
+        // Entry by entry, not through `copy_from_slice`: on a slice of unknown length that was a
+        // call to `memmove` for each contact (a product on 81,000 contacts took 1.3 ms, 0.95
+        // without it, one thread).
+        for (k, o) in out.chunks_exact_mut(2).enumerate() {
+            let a = first + k;
+            let u = self.gather_one(a, v);
+            o[0] = plus(u[0], 2 * a);
+            o[1] = plus(u[1], 2 * a + 1);
+        }
     }
 
     /// `out = W r`: a scatter to the bodies and a gather back.
