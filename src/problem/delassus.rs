@@ -101,14 +101,30 @@ impl Delassus {
         if let Delassus::Sparse(s) = self {
             s.validate()?;
         }
-        for (a, d) in self.diag_blocks().iter().enumerate() {
-            if !(d[0] > 0.0 && d[3] >= 0.0 && d.iter().all(|x| x.is_finite())) {
-                return Err(format!(
-                    "diagonal block of contact {a} is [[{}, {}], [{}, {}]]: W_nn must be > 0 (a contact between two fixed bodies?)",
-                    d[0], d[1], d[2], d[3]
-                ));
-            }
+        match self.first_bad_block() {
+            Some(a) => Err(bad_block_error(a, &self.diag_blocks()[a])),
+            None => Ok(()),
         }
-        Ok(())
     }
+
+    /// The first contact whose diagonal block [`is_bad_block`].
+    pub(crate) fn first_bad_block(&self) -> Option<usize> {
+        match self {
+            Delassus::MatrixFree(m) => m.first_bad_diag_block(is_bad_block),
+            Delassus::Sparse(_) => self.diag_blocks().iter().position(is_bad_block),
+        }
+    }
+}
+
+/// Whether a diagonal block cannot be a contact's `W_aa`: `W_nn ≤ 0`, `W_tt < 0` or not finite.
+pub(crate) fn is_bad_block(d: &Mat2) -> bool {
+    !(d[0] > 0.0 && d[3] >= 0.0 && d.iter().all(|x| x.is_finite()))
+}
+
+/// [`Delassus::validate`]'s words for contact `a`'s bad block `d`.
+pub(crate) fn bad_block_error(a: usize, d: &Mat2) -> String {
+    format!(
+        "diagonal block of contact {a} is [[{}, {}], [{}, {}]]: W_nn must be > 0 (a contact between two fixed bodies?)",
+        d[0], d[1], d[2], d[3]
+    )
 }

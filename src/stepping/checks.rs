@@ -5,7 +5,6 @@
 
 use glam::DVec2;
 
-use super::projection::pair_size;
 use crate::detection::{Antagonist, Configuration, DetectedContact, Detector};
 use crate::world::World;
 
@@ -181,31 +180,26 @@ fn squeeze_hint(world: &World) -> &'static str {
     }
 }
 
+/// The share of a pair's size (the smaller bounding radius) by which a pair must end below its
+/// target for [`check_overlaps`] to judge it: the projection's `slack`, at least 1e-3.
+pub fn pressed_share(slack: f64) -> f64 {
+    slack.max(1e-3)
+}
+
 /// The deepest pair left overlapping by more than [`CRUSH`] after a step that the position
-/// projection could not bring back to its `target` (its overlap at the start of the step, within
-/// `slack` of the radius, or 1e-3 of it), in words: a grain that started inside a wall stays
-/// there and is only warned about, but one pressed deeper step after step is caught. Exact
+/// projection could not bring back to its target (its overlap at the start of the step, within
+/// [`pressed_share`] of its size), in words: a grain that started inside a wall stays there and
+/// is only warned about, but one pressed deeper step after step is caught. `deepest` is that pair
+/// (index, overlap / size) as [`GapSummary`](super::projection::GapSummary) finds it. Exact
 /// antiparallel constraints (a grain pushed into a wall by a driven body) make the problem
 /// infeasible: the impulses grow without bound and cancel, the grain stays, and the driven body
 /// passes through it.
 pub fn check_overlaps(
     contacts: &[DetectedContact],
-    gaps: &[f64],
-    target: &[f64],
-    slack: f64,
+    deepest: Option<(usize, f64)>,
     world: &World,
 ) -> Result<(), String> {
-    let size = |c: &DetectedContact| pair_size(&world.bodies, c);
-    // The pair's size only where the pair ends below its target at all.
-    let pressed =
-        |(a, c): &(usize, &DetectedContact)| gaps[*a] < target[*a] && gaps[*a] < target[*a] - slack.max(1e-3) * size(c);
-    let deepest = contacts
-        .iter()
-        .enumerate()
-        .filter(pressed)
-        .map(|(a, c)| (c, -gaps[a] / size(c)))
-        .max_by(|x, y| x.1.total_cmp(&y.1));
-    match deepest {
+    match deepest.map(|(a, depth)| (&contacts[a], depth)) {
         Some((c, depth)) if depth > CRUSH => {
             let other = match c.other {
                 Antagonist::Body(j) => format!("body {j}"),
@@ -226,27 +220,45 @@ pub fn check_overlaps(
 /// The first body whose state after a step is not finite or ran away (moved farther than
 /// [`RUNAWAY`] scene extents within the step), in words.
 pub fn check_state(start: &[DVec2], world: &World, extent: f64) -> Result<(), String> {
-    let b = &world.bodies;
-    for (k, from) in start.iter().enumerate() {
-        let finite = b.position[k].is_finite()
-            && b.velocity[k].is_finite()
-            && b.angle.get(k).is_none_or(|a| a.is_finite())
-            && b.spin.get(k).is_none_or(|w| w.is_finite());
-        if !finite {
-            return Err(format!(
-                "body {k} is no longer finite (position {:?}, velocity {:?})",
-                b.position[k].to_array(),
-                b.velocity[k].to_array()
-            ));
-        }
-        let moved = b.position[k].distance(*from);
-        if moved > RUNAWAY * extent {
-            return Err(format!(
-                "body {k} ran away: it moved {moved:.3e} m in one step, more than {RUNAWAY:e} times the scene's extent \
-                 ({extent:.3e} m); the time step is too large for the forces{}",
-                squeeze_hint(world)
-            ));
-        }
+    let broken = |k: usize| state_is_broken(state_of(world, k), start[k], extent);
+    match (0..start.len()).find(|&k| broken(k)) {
+        Some(k) => Err(state_failure(start, world, extent, k)),
+        None => Ok(()),
     }
-    Ok(())
+}
+
+/// A body's state: position, velocity, and angle and spin when it turns.
+pub type BodyState = (DVec2, DVec2, Option<f64>, Option<f64>);
+
+fn state_of(world: &World, k: usize) -> BodyState {
+    let b = &world.bodies;
+    (b.position[k], b.velocity[k], b.angle.get(k).copied(), b.spin.get(k).copied())
+}
+
+fn is_finite((position, velocity, angle, spin): BodyState) -> bool {
+    position.is_finite() && velocity.is_finite() && angle.is_none_or(f64::is_finite) && spin.is_none_or(f64::is_finite)
+}
+
+/// Whether a body's new state is not finite, or it moved farther than [`RUNAWAY`] scene extents
+/// from where it started the step (`from`).
+pub fn state_is_broken(state: BodyState, from: DVec2, extent: f64) -> bool {
+    !is_finite(state) || state.0.distance(from) > RUNAWAY * extent
+}
+
+/// [`check_state`]'s words for body `k`, whose state [`state_is_broken`].
+pub fn state_failure(start: &[DVec2], world: &World, extent: f64, k: usize) -> String {
+    let b = &world.bodies;
+    if !is_finite(state_of(world, k)) {
+        return format!(
+            "body {k} is no longer finite (position {:?}, velocity {:?})",
+            b.position[k].to_array(),
+            b.velocity[k].to_array()
+        );
+    }
+    let moved = b.position[k].distance(start[k]);
+    format!(
+        "body {k} ran away: it moved {moved:.3e} m in one step, more than {RUNAWAY:e} times the scene's extent \
+         ({extent:.3e} m); the time step is too large for the forces{}",
+        squeeze_hint(world)
+    )
 }

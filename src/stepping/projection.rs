@@ -8,10 +8,11 @@ use glam::DVec2;
 
 use crate::backend::Backend;
 use crate::detection::{Antagonist, DetectedContact};
-use crate::parallel::map_indices;
+use crate::parallel::{parallel, reduce_chunks, CHUNK};
 use crate::problem::{ContactProblem, Delassus, MatrixFree};
 use crate::solvers::{SolverKind, SolverOptions, StopCriterion};
 use crate::world::{Bodies, Wall, World};
+use rayon::prelude::*;
 
 /// Sweeps of the projection, a correction of positions bounded in cost: a quarter of the step's
 /// solve, within these bounds; what it leaves shows in the step's `max_penetration`.
@@ -34,15 +35,16 @@ const LOCAL_SHARE: f64 = 0.01;
 const LOCAL_UPDATES: f64 = 0.5;
 
 /// Every contact's gap at the end of the step, from its start-of-step gap moved to first order
-/// by the bodies' displacement `B ΔX`, less the travel of its wall over the step.
+/// by the bodies' displacement `B ΔX`, less the travel of its wall over the step; its target
+/// `min(g_start, 0)` ([`targets`]); and their [`GapSummary`] with `shares`, in one pass over
+/// the contacts (on threads).
 pub(super) fn end_of_step_gaps(
     op: &MatrixFree,
     contacts: &[DetectedContact],
-    walls_at_start: &[Wall],
-    (start, start_angle): (&[DVec2], &[f64]),
-    world: &World,
-    h: f64,
-) -> Vec<f64> {
+    (walls_at_start, start, start_angle): (&[Wall], &[DVec2], &[f64]),
+    (world, h): (&World, f64),
+    shares: (f64, f64),
+) -> (Vec<f64>, Vec<f64>, GapSummary) {
     let b = &world.bodies;
     let s = op.dofs().per_body();
     let mut dx = vec![0.0; s * b.len()];
@@ -54,21 +56,108 @@ pub(super) fn end_of_step_gaps(
             dx[s * k + 2] = b.angle[k] - start_angle[k];
         }
     }
-    map_indices(contacts.len(), |a| {
-        let c = &contacts[a];
-        let moved = c.gap + op.gather_one(a, dx.as_slice())[0];
-        match c.other {
-            Antagonist::Wall(w) => moved - c.normal.dot(h * walls_at_start[w].velocity_at(c.point)),
-            Antagonist::Body(_) => moved,
+    let fill = |first: usize, gaps: &mut [f64], targets: &mut [f64]| {
+        let mut summary = GapSummary::default();
+        for (k, (gap, target)) in gaps.iter_mut().zip(targets).enumerate() {
+            let (a, c) = (first + k, &contacts[first + k]);
+            let moved = c.gap + op.gather_one(a, dx.as_slice())[0];
+            *gap = match c.other {
+                Antagonist::Wall(w) => moved - c.normal.dot(h * walls_at_start[w].velocity_at(c.point)),
+                Antagonist::Body(_) => moved,
+            };
+            *target = c.gap.min(0.0);
+            summary.add(a, (*gap, *target), || pair_size(b, c), shares);
         }
-    })
+        summary
+    };
+    let n = contacts.len();
+    let (mut gaps, mut targets) = (vec![0.0; n], vec![0.0; n]);
+    let summary = match parallel(n) {
+        true => gaps
+            .par_chunks_mut(CHUNK)
+            .zip(targets.par_chunks_mut(CHUNK))
+            .enumerate()
+            .map(|(chunk, (gaps, targets))| fill(chunk * CHUNK, gaps, targets))
+            .reduce(GapSummary::default, GapSummary::combine),
+        false => fill(0, &mut gaps, &mut targets),
+    };
+    (gaps, targets, summary)
+}
+
+/// How a step's end gaps stand against their targets, read in one pass over the contacts (on
+/// threads): what the projection must do, and what the step's checks and report read.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct GapSummary {
+    /// Pairs more than `slack` × their size below their target: the projection's work.
+    pub deeper: usize,
+    /// The largest `target − gap`, 0 when no pair is below its target.
+    pub largest_excess: f64,
+    /// The deepest overlap, `max(0, −gap)`.
+    pub max_penetration: f64,
+    /// The pair below its target by more than `pressed` × its size with the deepest overlap
+    /// relative to its size (index, `−gap / size`; the last of equals), for
+    /// [`super::checks::check_overlaps`].
+    pub deepest_pressed: Option<(usize, f64)>,
+}
+
+impl GapSummary {
+    /// The summary of `gaps` against `targets` ([`pair_size`] as the length), with the
+    /// projection's `slack` and the overlap check's `pressed` share.
+    pub(super) fn of(
+        contacts: &[DetectedContact],
+        (gaps, targets): (&[f64], &[f64]),
+        shares: (f64, f64),
+        bodies: &Bodies,
+    ) -> Self {
+        let part = |range: std::ops::Range<usize>| {
+            let mut summary = Self::default();
+            for a in range {
+                summary.add(a, (gaps[a], targets[a]), || pair_size(bodies, &contacts[a]), shares);
+            }
+            summary
+        };
+        reduce_chunks(contacts.len(), part, Self::combine).unwrap_or_default()
+    }
+
+    /// Contact `a` taken in, its pair's size (two random reads) asked only where it ended below
+    /// its target at all.
+    fn add(&mut self, a: usize, (gap, target): (f64, f64), size: impl FnOnce() -> f64, (slack, pressed): (f64, f64)) {
+        let excess = target - gap;
+        self.largest_excess = self.largest_excess.max(excess);
+        self.max_penetration = self.max_penetration.max(-gap);
+        if excess > 0.0 {
+            let size = size();
+            self.deeper += usize::from(excess > slack * size);
+            if gap < target - pressed * size {
+                self.deepest_pressed = Self::deeper_of(self.deepest_pressed, Some((a, -gap / size)));
+            }
+        }
+    }
+
+    /// The summary of contacts `x`'s, then `y`'s.
+    fn combine(x: Self, y: Self) -> Self {
+        Self {
+            deeper: x.deeper + y.deeper,
+            largest_excess: x.largest_excess.max(y.largest_excess),
+            max_penetration: x.max_penetration.max(y.max_penetration),
+            deepest_pressed: Self::deeper_of(x.deepest_pressed, y.deepest_pressed),
+        }
+    }
+
+    /// The deeper of two pairs, the later one (`y`) of equals.
+    fn deeper_of(x: Option<(usize, f64)>, y: Option<(usize, f64)>) -> Option<(usize, f64)> {
+        match (x, y) {
+            (Some(x), Some(y)) => Some(if x.1.total_cmp(&y.1).is_gt() { x } else { y }),
+            (x, y) => y.or(x),
+        }
+    }
 }
 
 /// Moves bodies back along `M⁻¹ Bᵀ p` until no contact ends below its target gap (p ≥ 0 the
 /// solution of the frictionless position problem `g + W p ≥ target ⊥ p ≥ 0`; the target is
 /// `min(g_start, 0)`: an overlap a pair started the step with is kept, as LMGC90 keeps it, and no
 /// new one is made); velocities stay as the solve left them. Updates `gaps`; returns how many
-/// contacts needed it and the GPU traffic of its sweeps (dispatches, bytes). A few deep pairs are
+/// contacts needed it (`summary`, [`GapSummary::of`] these gaps, counted them) and the GPU traffic of its sweeps (dispatches, bytes). A few deep pairs are
 /// resolved by a local pass on the CPU ([`project_locally`]); otherwise sweeps run on
 /// `backend`'s device, from where that pass got. The test that ends them is the same, in f64.
 /// A pair less than `slack` × the smaller radius below its target is left as it is (the
@@ -83,18 +172,18 @@ pub(super) fn project_positions(
     targets: &[f64],
     slack: f64,
     solve_iterations: usize,
+    summary: &GapSummary,
 ) -> (usize, (u64, u64)) {
     let b = &world.bodies;
     let size = |c: &DetectedContact| pair_size(b, c);
     let excess = |a: usize| targets[a] - gaps[a];
-    // The pair's size (two random reads) only where the pair ended deeper than its target at all.
-    let deeper = (0..contacts.len()).filter(|&a| excess(a) > 0.0 && excess(a) > slack * size(&contacts[a])).count();
+    let deeper = summary.deeper;
     if deeper == 0 {
         return (0, (0, 0));
     }
     // Slack far beyond the deepest excess cannot matter; capping it keeps the solver's scale
     // (the largest |q|) tied to the corrections, not to the widest open contact.
-    let cap = 10.0 * (0..contacts.len()).map(excess).fold(0.0, f64::max);
+    let cap = 10.0 * summary.largest_excess;
     // Positions are projected along the (n, t) rows only: rolling rows resist spins, not overlaps.
     let plain;
     let op = if op.has_rolling() {
@@ -256,7 +345,60 @@ pub(crate) fn pair_size(b: &Bodies, c: &DetectedContact) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::detection::Antagonist;
     use crate::problem::matrix_free::disks_in_a_row as row;
+    use crate::world::BodySpec;
+
+    /// The summary made in one pass finds what the passes it replaced found: the pairs beyond the
+    /// projection's slack, the largest excess, the deepest overlap, and the deepest pressed pair
+    /// relative to its size (the last of equals), on one thread and on four.
+    #[test]
+    fn the_gap_summary_is_what_a_pass_for_each_finding_gives() {
+        let n = 3 * crate::parallel::PARALLEL_MIN + 7;
+        let mut bodies = Bodies::new(true);
+        for k in 0..=n {
+            let radius = match k {
+                1_001 | 1_002 | 9_002 | 9_003 => 0.5,
+                _ => 0.4 + 0.2 * ((k as f64) * 0.77).sin().abs(),
+            };
+            bodies.add(&BodySpec::disk(DVec2::new(k as f64, 0.0), radius, 0), 1.0).expect("a disk");
+        }
+        let contact = |a: usize| DetectedContact {
+            i: a,
+            other: if a.is_multiple_of(5) { Antagonist::Wall(0) } else { Antagonist::Body(a + 1) },
+            feature: 0,
+            point: DVec2::ZERO,
+            normal: DVec2::X,
+            gap: 0.0,
+            image: DVec2::ZERO,
+        };
+        let contacts: Vec<DetectedContact> = (0..n).map(contact).collect();
+        let mut gaps: Vec<f64> = (0..n).map(|a| 0.3 * ((a as f64) * 1.31).sin() - 0.1).collect();
+        let targets: Vec<f64> = (0..n).map(|a| (0.2 * ((a as f64) * 0.53).cos()).min(0.0)).collect();
+        // Two pressed pairs far apart, equally deep for their size (3): the later one is named.
+        for a in [1_001, 9_002] {
+            gaps[a] = -1.5;
+        }
+        let gaps = gaps;
+        let shares = (1e-2, 0.05);
+        let size = |a: usize| pair_size(&bodies, &contacts[a]);
+        let excess = |a: usize| targets[a] - gaps[a];
+        let expected = GapSummary {
+            deeper: (0..n).filter(|&a| excess(a) > 0.0 && excess(a) > shares.0 * size(a)).count(),
+            largest_excess: (0..n).map(excess).fold(0.0, f64::max),
+            max_penetration: gaps.iter().fold(0.0, |m, g| m.max(-g)),
+            deepest_pressed: (0..n)
+                .filter(|&a| gaps[a] < targets[a] && gaps[a] < targets[a] - shares.1 * size(a))
+                .map(|a| (a, -gaps[a] / size(a)))
+                .max_by(|x, y| x.1.total_cmp(&y.1)),
+        };
+        assert!(expected.deeper > 1_000 && expected.deepest_pressed.is_some_and(|(a, _)| a == 9_002), "{expected:?}");
+        for threads in [1, 4] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let summary = pool.install(|| GapSummary::of(&contacts, (&gaps, &targets), shares, &bodies));
+            assert_eq!(summary, expected, "{threads} thread(s)");
+        }
+    }
 
     /// One pair of the row pushed 0.1 into each other, the others touching: the local pass
     /// separates it and the neighbours it pushes, and every contact ends within its slack.
