@@ -9,7 +9,7 @@ use std::path::Path;
 use moreau::backend::{gpu_refusal, Backend, DeviceChoice, F32_FLOOR};
 use moreau::gpu::GpuContext;
 use moreau::problem::generate::lattice_packing;
-use moreau::solvers::stopping::CHECK_WORK;
+use moreau::solvers::stopping::{check_work, CHECK_WORK};
 use moreau::solvers::{solve, NewtonLinear, Ordering, SolverKind, SolverOptions, StopCriterion, StopReason};
 use moreau::stepping::Simulation;
 use moreau::ContactProblem;
@@ -44,6 +44,9 @@ fn a_warm_started_solve_stops_within_one_check_of_meeting_tol() {
     // A deep pile of heavy grains: the change of r between sweeps stays above tol long after
     // the error has met it, so the light rule alone ran such solves to max_iter.
     let (p, r0) = warm_started(&scene_problem("scenes/pile_10k.toml", 2));
+    // A matrix-free problem's natural-map check is one pass: checked every 5 sweeps, not 10.
+    let cadence = check_work(&p, StopCriterion::Natural);
+    assert_eq!(cadence, moreau::solvers::stopping::ONE_PASS_CHECK_WORK);
     for tol in [1e-4, 1e-5, 1e-6] {
         // Where the error first meets tol, from the error after every sweep.
         let traced = SolverOptions { tol: 1e-14, max_iter: 300, history_every: 1, ..Default::default() };
@@ -52,8 +55,8 @@ fn a_warm_started_solve_stops_within_one_check_of_meeting_tol() {
         let run = solve(&p, SolverKind::Nlgs, &SolverOptions { tol, max_iter: 3000, ..Default::default() }, Some(&r0));
         assert!(run.converged && run.stop == StopReason::Converged, "tol {tol:e}: {}", run.stop_reason);
         assert!(
-            run.iterations <= k + CHECK_WORK,
-            "tol {tol:e}: met at sweep {k}, stopped at {} (cadence {CHECK_WORK})",
+            run.iterations <= k + cadence,
+            "tol {tol:e}: met at sweep {k}, stopped at {} (cadence {cadence})",
             run.iterations
         );
     }
@@ -324,6 +327,7 @@ fn a_work_list_checks_the_full_error_when_its_list_empties_and_by_cost_alone() {
     let p = scene_problem("scenes/pile.toml", 120);
     let r = solve(&p, SolverKind::Nlgs, &work_list(1e-3, 50_000), None);
     assert!(r.converged, "{}", r.stop_reason);
+    assert_eq!(check_work(&p, StopCriterion::Velocity), CHECK_WORK, "a velocity test's check is two passes");
     let checked: Vec<usize> = r.history.iter().map(|h| h.iteration).collect();
     assert!(
         checked.iter().all(|&k| k % CHECK_WORK == 0 || k == r.iterations),

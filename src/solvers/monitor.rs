@@ -10,7 +10,7 @@
 //! (or, when asked, LMGC90's test holds); the final error is always reported.
 
 use super::lmgc_criteria::LmgcMeasures;
-use super::stopping::{CheckCadence, JudgedMeasure, StopReason};
+use super::stopping::{check_work, CheckCadence, JudgedMeasure, StopReason};
 use super::{HistoryPoint, SolveReport, SolverKind, SolverOptions};
 use crate::parallel::chunked_sum;
 use crate::problem::cone::project_box;
@@ -76,7 +76,7 @@ impl<'a> Monitor<'a> {
             measure: JudgedMeasure::new(problem, opts.criterion),
             converged: false,
             stop_reason: None,
-            cadence: CheckCadence::default(),
+            cadence: CheckCadence::every(check_work(problem, opts.criterion)),
             products_seen: 0,
             scratch_u: vec![0.0; r0.len()],
             scratch_check: None,

@@ -134,23 +134,51 @@ pub fn refuse_unbounded(problem: &ContactProblem, report: &mut SolveReport) {
 /// Gauss–Seidel sweep counts as one, so NLGS is checked at least every 10 sweeps. A full check is
 /// a product and the error's pass, and costs at most a sweep: `moreau bench --scene` measured
 /// 0.96–1.11 sweeps on the 10,000-disk pile and 1.12–1.21 on the 40,000 (one and two threads,
-/// two runs), then 0.44–0.51 on the 10,000-disk pile's first problem under the natural map (one
-/// thread) once the product's gather called no `memmove` per contact and the error was taken
-/// in the gather's pass.
+/// two runs). A check under a velocity test adds that test's pass (0.52–0.55 ms against a sweep's
+/// 0.76–0.99 on the 10,000-disk pile's first problem, one thread).
 pub const CHECK_WORK: usize = 10;
 
+/// [`CHECK_WORK`] for a check made in one pass ([`ContactProblem::error_in_product`] under the
+/// natural map): 0.44–0.51 of a sweep on the 10,000-disk pile's first problem (one thread) once
+/// the product's gather called no `memmove` per contact and took the error's terms as it went,
+/// so a check every 5 sweeps' worth stays near 10 %. The 10,000-disk pile at rest under the
+/// natural map at 1e-4 met tol by its fifth sweep: checked at the tenth, each step made twice the
+/// sweeps it needed (BENCHMARKS.md, "The cadence of a one-pass check").
+pub const ONE_PASS_CHECK_WORK: usize = 5;
+
+/// Product-equivalents of work between two checks of `problem` under `criterion` (≤ 10 % of a
+/// solve): [`ONE_PASS_CHECK_WORK`] where a check is one pass, [`CHECK_WORK`] otherwise.
+pub fn check_work(problem: &ContactProblem, criterion: StopCriterion) -> usize {
+    match criterion == StopCriterion::Natural && problem.error_in_product() {
+        true => ONE_PASS_CHECK_WORK,
+        false => CHECK_WORK,
+    }
+}
+
 /// Decides when the full error is due, by work done since the last check.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct CheckCadence {
+    every: usize,
     work_since_check: usize,
 }
 
+impl Default for CheckCadence {
+    fn default() -> Self {
+        Self::every(CHECK_WORK)
+    }
+}
+
 impl CheckCadence {
+    /// A check due once `work` product-equivalents were done since the last ([`check_work`]).
+    pub fn every(work: usize) -> Self {
+        Self { every: work.max(1), work_since_check: 0 }
+    }
+
     /// Records one iteration that cost `work` product-equivalents (at least 1) and says whether a
     /// check is due by cost.
     pub fn after_iteration(&mut self, work: usize) -> bool {
         self.work_since_check += work.max(1);
-        self.work_since_check >= CHECK_WORK
+        self.work_since_check >= self.every
     }
 
     /// A check happened (for whatever reason): the work count starts again.
@@ -201,6 +229,9 @@ mod tests {
         c.checked();
         assert!(!c.after_iteration(1));
         assert!(c.after_iteration(20), "an iteration worth 20 products is checked at once");
+        let mut c = CheckCadence::every(ONE_PASS_CHECK_WORK);
+        let due: Vec<bool> = (0..12).map(|_| c.after_iteration(1)).collect();
+        assert_eq!(due.iter().position(|&d| d), Some(ONE_PASS_CHECK_WORK - 1));
     }
 
     #[test]

@@ -4,7 +4,7 @@
 //! a contact that is updated puts the contacts of its moving bodies back on the list, since only
 //! they saw their velocities change. An empty list therefore means that every contact is within
 //! the threshold: the velocity test is met, and the solve is judged there. Between, the full error
-//! is checked by cost alone (every `CHECK_WORK` sweeps' worth): the light rule, which checks when
+//! is checked by cost alone (every [`check_work`](super::stopping::check_work) sweeps' worth): the light rule, which checks when
 //! the iterate changed little, would check after every sweep's worth, since each touches few
 //! contacts (7 % of a 2-thread step on the 10,000-disk pile).
 //!
