@@ -882,19 +882,19 @@ impl MatrixFree {
     /// they are not made yet ([`Self::diag_blocks`]'s values): a check that read them after they
     /// were made read 2.6 MB again on the 40,000-disk pile, from memory.
     pub fn first_bad_diag_block(&self, bad: impl Fn(&Mat2) -> bool + Sync + Send) -> Option<usize> {
-        let first_in = |first: usize, blocks: &[Mat2]| blocks.iter().position(&bad).map(|k| first + k);
         if let Some(blocks) = self.diag.get() {
-            return crate::parallel::reduce_chunks(blocks.len(), |r| first_in(r.start, &blocks[r]), Option::or)?;
+            return first_failure(blocks.len(), |a| if bad(&blocks[a]) { Err(a) } else { Ok(()) }).err();
         }
         let n = self.n_contacts();
         let mut blocks = vec![[0.0; 4]; n];
         let fill = |(c, part): (usize, &mut [Mat2])| {
             part.iter_mut().enumerate().for_each(|(k, w)| *w = self.diag_block(c * CHUNK + k));
-            first_in(c * CHUNK, part)
+            part.iter().position(&bad).map(|k| c * CHUNK + k)
         };
+        // Every chunk made, past a bad block too: the blocks are kept.
         let first = match parallel(n) {
             true => blocks.par_chunks_mut(CHUNK).enumerate().map(fill).reduce(|| None, Option::or),
-            false => blocks.chunks_mut(CHUNK).enumerate().map(fill).find_map(|x| x),
+            false => blocks.chunks_mut(CHUNK).enumerate().map(fill).fold(None, Option::or),
         };
         // Another thread may have made them meanwhile: the same values.
         let _ = self.diag.set(blocks);

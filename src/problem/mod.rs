@@ -351,6 +351,14 @@ mod tests {
                 assert!(message.starts_with("diagonal block of contact 9001 "), "{message}");
             }
         }
+        // A refused operator stays whole: every block made, past the bad one too.
+        for threads in [1, 4] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let w = Delassus::MatrixFree(long_row(Some(9_001)));
+            assert!(pool.install(|| w.validate()).is_err());
+            let Delassus::MatrixFree(op) = &w else { unreachable!() };
+            assert!((0..nc).all(|a| op.diag_blocks()[a] == op.diag_block(a)), "{threads} thread(s)");
+        }
         // A good problem passes, its blocks made in the check those made one by one.
         let p = ContactProblem::new(Delassus::MatrixFree(long_row(None)), q.clone(), mu.clone()).expect("valid");
         let Delassus::MatrixFree(op) = &p.w else { unreachable!() };
