@@ -79,6 +79,9 @@ if [ -z "$BASELINE" ]; then
     say "the sandbox's first step to 1e-4: 100,000 GPU sweeps; focused sweeps on $THREADS cores (20,000 sweeps' worth)"
     timeout 60 "$MOREAU" run scenes/sandbox.toml --device gpu --steps 1 --max-iter 100000 --vtk-every 0 --quiet \
         --out "$OUT/runs/sandbox_gpu_1e4" 2>&1 | tee -a "$log"
+    say "the sandbox's first step to 1e-4: block sweeps, 16 a round (100,000 sweeps' worth)"
+    timeout 60 "$MOREAU" run scenes/sandbox.toml --device gpu --steps 1 --block-sweeps 16 --max-iter 6250 --vtk-every 0 \
+        --quiet --out "$OUT/runs/sandbox_gpu_blocks_1e4" 2>&1 | tee -a "$log"
     [ "${CPU_ROWS:-1}" != 0 ] && timeout 90 "$MOREAU" run scenes/sandbox.toml --device cpu --threads "$THREADS" --steps 1 \
         --max-iter 20000 --focus 19 --anderson 0 --vtk-every 0 --quiet --out "$OUT/runs/sandbox_cpu_focus_1e4" 2>&1 | tee -a "$log"
 fi
@@ -119,8 +122,10 @@ peer_table() {
 [ -n "$PEERS" ] && [ -n "$settled" ] && peer_table 300 "$settled" peers
 if [ -n "$at_rest" ]; then
     # The piles of BENCHMARKS "The piles at rest beside rapier2d", on the GPU: the scene's
-    # setting (step-velocity 1e-2, work list) and the two readings of tol 1e-4.
-    for setting in "" "--criterion velocity --tol 1e-4" "--criterion natural --tol 1e-4"; do
+    # setting (step-velocity 1e-2, work list) and the two readings of tol 1e-4, with colour and
+    # block sweeps.
+    for setting in "" "--block-sweeps 4" "--block-sweeps 16" "--criterion velocity --tol 1e-4" \
+        "--criterion velocity --tol 1e-4 --block-sweeps 16" "--criterion natural --tol 1e-4 --ordering forward"; do
         say "pile_10k at rest (3,000 steps) on the GPU, ${setting:-as the scene sets it}"
         timeout 60 "$MOREAU" run scenes/pile_10k.toml --restart "$at_rest" --device gpu --steps 30 $setting --quiet \
             --out "$OUT/runs/rest_pile_gpu_${setting//[^a-z0-9]/}" 2>&1 | grep -v "^warning" | tee -a "$log"

@@ -208,10 +208,16 @@ fn main() {
                 continue;
             }
             let mut s = load();
+            // The GPU's work list stops on a velocity test; under the natural map it sweeps
+            // every contact, colour by colour, as a user of `--device gpu` would be told to.
+            let ordering = match ordering.unwrap_or(s.settings.options.ordering) {
+                Ordering::Worklist if on_gpu && !criterion.is_velocity_test() => Ordering::Forward,
+                o => o,
+            };
             let base = SolverOptions {
                 anderson: anderson.unwrap_or(s.settings.options.anderson),
                 focus: focus.unwrap_or(s.settings.options.focus),
-                ordering: ordering.unwrap_or(s.settings.options.ordering),
+                ordering,
                 criterion,
                 ..s.settings.options.clone()
             };

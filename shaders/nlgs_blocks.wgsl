@@ -35,7 +35,7 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index
         for (var c = 0u; c < blocks.colours; c++) {
             let end = colour_start[base + c + 1u];
             for (var k = colour_start[base + c] + lane; k < end; k += BLOCK_WORKGROUP) {
-                nlgs_update(order[k], blocks.threshold);
+                _ = nlgs_update(order[k], blocks.threshold);
             }
             // The colour's updates, in v and r, seen by the whole workgroup before the next.
             storageBarrier();

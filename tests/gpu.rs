@@ -116,17 +116,30 @@ fn every_kernel_matches_its_cpu_mirror() {
         sorted.sort_by(f32::total_cmp);
         for threshold in [0.0, sorted[nc / 2]] {
             let (mut r_cpu, mut v_cpu) = (r.clone(), cpu_v.clone());
+            let mut counted = 0;
             for colour in 0..colouring.n_colours() {
-                let (r_gpu, v_gpu) =
+                let r_before = r_cpu.clone();
+                let ((r_gpu, v_gpu), updated_gpu) =
                     stages::nlgs_colour(&ctx, &layout, &diag, &q, &mu, &colouring, colour, threshold, &r_cpu, &v_cpu)
                         .unwrap();
                 let contacts = colouring.colour(colour);
-                cpu::nlgs_colour::nlgs_colour(&layout, &diag, &q, &mu, contacts, threshold, &mut r_cpu, &mut v_cpu);
+                let updated =
+                    cpu::nlgs_colour::nlgs_colour(&layout, &diag, &q, &mu, contacts, threshold, &mut r_cpu, &mut v_cpu);
                 let what = format!("{name}: nlgs_colour {colour}, threshold {threshold:e}");
                 assert_close(r_gpu.as_flattened(), r_cpu.as_flattened(), &format!("{what} r"));
                 assert_close(v_gpu.as_flattened(), v_cpu.as_flattened(), &format!("{what} v"));
+                // The kernel counts what it updated (the work list's sweeps), as the mirror does.
+                assert_eq!(updated_gpu, updated, "{what}: contacts updated");
+                let moved = contacts.iter().filter(|&&a| r_cpu[a as usize] != r_before[a as usize]).count() as u32;
+                assert!(threshold == 0.0 || updated >= moved, "{what}: {updated} counted, {moved} moved");
+                counted += updated;
                 // Continue both from the mirror's state so differences cannot compound.
             }
+            // Plain sweeps count nothing; thresholded ones some of the contacts.
+            assert!(
+                if threshold == 0.0 { counted == 0 } else { counted > 0 && counted < nc as u32 },
+                "{name}: {counted}"
+            );
             // The first colour saw the starting velocities: its contacts within the threshold
             // kept their impulses, the others moved.
             let first = colouring.colour(0).iter().map(|&a| a as usize);
@@ -307,6 +320,61 @@ fn the_gpu_holds_every_contact_to_a_step_of_gravity_under_the_step_velocity_test
     }
 }
 
+/// The work list's thresholded sweeps count their iterations as the CPU's list does, in sweeps'
+/// worth of contact updates, so `max_iter` bounds the same work on both devices: a pile step's
+/// answer for free velocities 2 % off is met again in more rounds than `max_iter` and fewer
+/// sweeps' worth, where counting rounds stopped it at `max_iter`; colour sweeps with no
+/// threshold count rounds; a solve held to one sweep's worth stops there.
+#[test]
+fn the_gpu_work_list_counts_sweeps_worth_of_updates_as_the_cpu_list_does() {
+    use moreau::gpu::driver::ROUNDS_PER_COUNTED_ITERATION;
+    use moreau::solvers::{Ordering, StopCriterion};
+    let Some(ctx) = common::gpu_context() else { return };
+    // The 400-disk pile's 120th step (595 contacts), answered to 1e-7, for free velocities up to
+    // 2 % off: a step's warm start.
+    let s = moreau::scene::load(Path::new("scenes/pile.toml")).unwrap();
+    let mut sim = moreau::stepping::Simulation::new(s.world, s.settings).unwrap();
+    sim.keep_problems(true);
+    for _ in 0..120 {
+        sim.step().unwrap();
+    }
+    let mut p = sim.last_problem().expect("contacts").clone();
+    let exact =
+        SolverOptions { tol: 1e-7, max_iter: 100_000, criterion: StopCriterion::Velocity, ..Default::default() };
+    let r0 = solve(&p, SolverKind::Nlgs, &exact, None).r;
+    p.q.iter_mut().enumerate().for_each(|(k, q)| *q *= 1.0 + 0.02 * ((k as f64) * 0.7).sin());
+    // (The f32 sweeps stall near 3.5e-4 of the velocity test here.)
+    let listed = |max_iter| SolverOptions {
+        tol: 5e-4,
+        max_iter,
+        criterion: StopCriterion::Velocity,
+        ordering: Ordering::Worklist,
+        anderson: 0,
+        ..Default::default()
+    };
+    let run = moreau::gpu::solve(&ctx, &p, SolverKind::Nlgs, &listed(5), Some(&r0)).unwrap();
+    let rounds = run.gpu_checks.rounds;
+    assert!(run.converged && run.iterations <= 5, "{} ({} sweeps' worth)", run.stop_reason, run.iterations);
+    assert!(rounds > 5 && rounds > run.iterations, "{rounds} rounds, {} sweeps' worth", run.iterations);
+    assert!(
+        run.notes.iter().any(|n| n.contains("contact updates") && n.contains(&format!("in {rounds} rounds"))),
+        "{:?}",
+        run.notes
+    );
+    // Colour sweeps with no threshold count rounds, as before.
+    let swept = SolverOptions { ordering: Ordering::Colours, ..listed(5) };
+    let plain = moreau::gpu::solve(&ctx, &p, SolverKind::Nlgs, &swept, Some(&r0)).unwrap();
+    assert_eq!(plain.gpu_checks.rounds, plain.iterations);
+    // A bound of one sweep's worth: the updates stop there, the rounds by 32 (with a batch).
+    let short =
+        moreau::gpu::solve(&ctx, &p, SolverKind::Nlgs, &SolverOptions { tol: 1e-9, ..listed(1) }, Some(&r0)).unwrap();
+    assert!(
+        !short.converged && short.gpu_checks.rounds <= ROUNDS_PER_COUNTED_ITERATION + 16,
+        "{} rounds",
+        short.gpu_checks.rounds
+    );
+}
+
 /// Block sweeps (`block_sweeps`: each workgroup sweeps a block of 4,096 contacts several times
 /// a dispatch) solve what colour sweeps solve, judged in f64 on the CPU, in fewer dispatches: a
 /// lattice of about 5,000 contacts (two blocks), plain and as the work list's thresholded sweeps.
@@ -337,8 +405,10 @@ fn block_sweeps_solve_what_colour_sweeps_solve_in_fewer_dispatches() {
             assert!(error <= tol, "{what}: f64 error {error:e}");
             let noted = run.notes.iter().any(|n| n.starts_with("block sweeps: 2 blocks"));
             assert_eq!(noted, block_sweeps > 0, "{what}: {:?}", run.notes);
-            // The sweeps' dispatches (the checks' are the same per iteration on both).
-            run.iterations * if block_sweeps > 0 { block_colours } else { colouring.n_colours() }
+            // The sweeps' dispatches (the checks' are the same per iteration on both): rounds,
+            // which the work list's colour sweeps count apart from their iterations (updates).
+            assert!(run.gpu_checks.rounds >= run.iterations, "{what}: {} rounds", run.gpu_checks.rounds);
+            run.gpu_checks.rounds * if block_sweeps > 0 { block_colours } else { colouring.n_colours() }
         });
         assert!(dispatches[1] < dispatches[0], "{ordering:?}: {dispatches:?} dispatches");
     }

@@ -4,7 +4,7 @@
 // a kernel that imports it numbers its own from 8, and imports `masses` before it. The caller guarantees that no other invocation
 // touches the contact's moving bodies meanwhile. With a threshold (the work list's sweeps), a
 // contact whose residual in velocity units is within it is left alone: converged contacts do not
-// drift.
+// drift; it returns whether it updated the contact (the work list's sweeps count their updates).
 // CPU mirror: src/gpu/cpu/nlgs_colour.rs
 
 @group(0) @binding(0) var<storage, read> contacts: array<Contact>;
@@ -27,7 +27,7 @@ fn scatter(k: u32, s: f32, f: vec2<f32>, torque: f32) {
     v[k] = dv;
 }
 
-fn nlgs_update(a: u32, threshold: f32) {
+fn nlgs_update(a: u32, threshold: f32) -> bool {
     let c = contacts[a];
     let t = vec2<f32>(-c.n.y, c.n.x);
     var vj = vec4<f32>(0.0);
@@ -38,7 +38,7 @@ fn nlgs_update(a: u32, threshold: f32) {
     let ra = r[a];
     let u = relative_velocity(c, v[c.i], vj) + q[a];
     if (threshold > 0.0 && sc_velocity_residual(w.x, ra, u, mu[a]) <= threshold) {
-        return;
+        return false;
     }
     let q_local = u - vec2<f32>(w.x * ra.x + w.y * ra.y, w.z * ra.x + w.w * ra.y);
     let rn = solve_single_contact(w, q_local, mu[a]);
@@ -62,4 +62,5 @@ fn nlgs_update(a: u32, threshold: f32) {
     if (c.j != NO_BODY) {
         scatter(c.j, -1.0, f, tj);
     }
+    return true;
 }

@@ -302,9 +302,13 @@ fn gpu_scene_rows(p: &ContactProblem, opts: &SolverOptions, a: &BenchArgs) -> Re
         let solved = backend.solve(p, SolverKind::Nlgs, &opts, None)?;
         // A plateau of mixed f32 sweeps hands the rest to plain ones, a plateau in f32 to the
         // CPU: the sweeps of each part, and the time a sweep of the first.
+        let c = solved.gpu_checks;
+        // The work list's thresholded sweeps count sweeps' worth of updates: time a round.
         let first = solved.parts.first().map_or((solved.iterations, solved.seconds), |g| (g.iterations, g.seconds));
-        let per_sweep = (first.0 > 0).then(|| first.1 / first.0 as f64);
-        let sweeps = match solved.parts.len() {
+        let counted = c.rounds != solved.gpu_iterations();
+        let rounds = if counted { c.rounds } else { first.0 };
+        let per_sweep = (rounds > 0).then(|| first.1 / rounds as f64);
+        let mut sweeps = match solved.parts.len() {
             0 => solved.iterations.to_string(),
             _ => solved
                 .parts
@@ -318,7 +322,9 @@ fn gpu_scene_rows(p: &ContactProblem, opts: &SolverOptions, a: &BenchArgs) -> Re
                 .collect::<Vec<_>>()
                 .join(" + "),
         };
-        let c = solved.gpu_checks;
+        if counted {
+            sweeps = format!("{sweeps} sweeps' worth in {} rounds", c.rounds);
+        }
         println!(
             "| {} | {} | {:.4} | {} | {:.4} | {:.2e} | {}{}, {} | {}, {} ({:.1}) |",
             anderson,

@@ -64,6 +64,8 @@ pub struct ColouredSweep {
     per_colour: Vec<(BindGroup, u32)>,
     /// Matrix-free: `v = M⁻¹ Bᵀ r` from the impulses (`body_accumulate`) and the bodies.
     velocities: Option<(BindGroup, usize)>,
+    /// Thresholded colour sweeps: the count of contacts they updated (one u32, cumulative).
+    updates: Option<GpuBuffer>,
     _buffers: Vec<GpuBuffer>,
 }
 
@@ -97,6 +99,8 @@ impl ColouredSweep {
                 })
                 .collect()
         };
+        // The colour kernel counts its updates when thresholded.
+        let updates = storage(ctx, "updates", &[0u32]);
         // Per operator kind: the colours, the velocities' rebuild, and the buffers to keep.
         let (dispatches, per_colour, velocities, mut kept) = match &gp.matrix {
             GpuMatrix::MatrixFree { layout, contacts, body_start, body_list, inv_mass } => {
@@ -167,7 +171,7 @@ impl ColouredSweep {
                 } else {
                     let order = storage(ctx, "order", &colouring.order);
                     let mut buffers = common.to_vec();
-                    buffers.push(("order", &order));
+                    buffers.extend([("order", &order), ("updates", &updates)]);
                     let per_colour = per_colour(&kernels.nlgs_colour, &colouring, &buffers);
                     (Dispatches::Colours { matrix_free: true }, per_colour, velocities, vec![order, v])
                 }
@@ -190,7 +194,15 @@ impl ColouredSweep {
             }
         };
         kept.push(diag_buf);
-        Self { kernels: kernels.clone(), dispatches, per_colour, velocities, _buffers: kept }
+        let counted = threshold > 0.0 && dispatches == Dispatches::Colours { matrix_free: true };
+        let updates = counted.then_some(updates);
+        Self { kernels: kernels.clone(), dispatches, per_colour, velocities, updates, _buffers: kept }
+    }
+
+    /// Thresholded colour sweeps (the work list's): the buffer in which they count the contacts
+    /// they update, cumulatively (one u32).
+    pub fn update_counter(&self) -> Option<&GpuBuffer> {
+        self.updates.as_ref()
     }
 
     /// Records one sweep: a dispatch per colour (per block colour for block sweeps).
@@ -262,7 +274,7 @@ pub fn solve(
     let mixer = (depth > 0).then(|| GpuAnderson::new(ctx, &gp, &r32, &r_buf, depth, sweep.velocities()));
     // A round of block sweeps does `block_sweeps` sweeps of each block.
     let sweeps = if blocked { opts.block_sweeps } else { 1 };
-    let per_iteration = PerIteration { products: sweeps, sweeps };
+    let per_iteration = PerIteration { products: sweeps, sweeps, updates: sweep.update_counter().cloned() };
     let mut report = iterate(ctx, p, &gp, opts, SolverKind::Nlgs, start, r, &r_buf, per_iteration, |pass| {
         sweep.record(pass);
         if let Some(mixer) = &mixer {

@@ -86,7 +86,8 @@ pub fn jacobi_update(
 }
 
 /// Runs a matrix-free NLGS kernel once over `(r, v)` on `workgroups` workgroups: the operator's
-/// buffers, then `indices` by name, `r`, `v` and the kernel's uniform; returns the new `r` and `v`.
+/// buffers, then `indices` by name, `r`, `v` and the kernel's uniform; returns the new `r` and
+/// `v`, and what the kernel left in `updates[0]` when `indices` name that counter.
 #[allow(clippy::too_many_arguments)]
 fn nlgs_stage(
     ctx: &GpuContext,
@@ -97,7 +98,7 @@ fn nlgs_stage(
     uniform: (&'static str, &GpuBuffer),
     workgroups: u32,
     (r, v): (&[[f32; 2]], &[[f32; 4]]),
-) -> Result<ImpulsesAndVelocities, GpuError> {
+) -> Result<(ImpulsesAndVelocities, u32), GpuError> {
     let mut bufs = vec![
         storage(ctx, "contacts", &op.contacts),
         storage(ctx, "inv_mass", &op.inv_mass),
@@ -115,14 +116,20 @@ fn nlgs_stage(
     let group = bind(ctx, kernel, &all);
     submit(ctx, "stage", |pass| dispatch(pass, kernel, &group, workgroups));
     let n = bufs.len();
-    Ok((
+    let updates = match indices.iter().position(|(name, _)| *name == "updates") {
+        Some(i) => read_back::<u32>(ctx, &bufs[5 + i], 1).map_err(GpuError::Runtime)?[0],
+        None => 0,
+    };
+    let r_v = (
         read_back(ctx, &bufs[n - 2], r.len()).map_err(GpuError::Runtime)?,
         read_back(ctx, &bufs[n - 1], v.len()).map_err(GpuError::Runtime)?,
-    ))
+    );
+    Ok((r_v, updates))
 }
 
 /// One colour of the coloured NLGS sweep (matrix-free), updating only contacts whose residual in
-/// velocity units exceeds `threshold` when it is > 0: returns the new `r` and `v`.
+/// velocity units exceeds `threshold` when it is > 0: returns the new `r` and `v`, and the
+/// contacts the kernel counted as updated (none counted at threshold 0).
 #[allow(clippy::too_many_arguments)]
 pub fn nlgs_colour(
     ctx: &GpuContext,
@@ -135,11 +142,11 @@ pub fn nlgs_colour(
     threshold: f32,
     r: &[[f32; 2]],
     v: &[[f32; 4]],
-) -> Result<ImpulsesAndVelocities, GpuError> {
+) -> Result<(ImpulsesAndVelocities, u32), GpuError> {
     let k = ctx.kernels(op.rotation, op.friction);
     let count = colouring.start[colour + 1] - colouring.start[colour];
     let range = super::kernels::uniform(ctx, "range", &[colouring.start[colour], count, threshold.to_bits(), 0]);
-    let indices = [("order", &colouring.order[..])];
+    let indices = [("order", &colouring.order[..]), ("updates", &[0u32][..])];
     nlgs_stage(ctx, &k.nlgs_colour, op, (diag, q, mu), &indices, ("range", &range), groups(count as usize), (r, v))
 }
 
@@ -167,7 +174,7 @@ pub fn nlgs_blocks(
         ("block_order", &blocks.blocks.order[..]),
     ];
     // A workgroup per block.
-    nlgs_stage(ctx, &k.nlgs_blocks, op, w, &indices, ("blocks", &uniform), end - first, r_v)
+    Ok(nlgs_stage(ctx, &k.nlgs_blocks, op, w, &indices, ("blocks", &uniform), end - first, r_v)?.0)
 }
 
 /// One colour of the coloured NLGS sweep on an explicit `W`: returns the new `r`.

@@ -473,6 +473,9 @@ pub struct GpuChecks {
     pub judge_seconds: f64,
     /// Iterations queued past the check that stopped the solve, run and not used.
     pub discarded: usize,
+    /// Iterations run up to that check: for the work list's thresholded sweeps, whose
+    /// iterations count sweeps' worth of updates, their rounds of colour dispatches.
+    pub rounds: usize,
 }
 
 impl GpuChecks {
@@ -482,6 +485,7 @@ impl GpuChecks {
         self.judged += other.judged;
         self.judge_seconds += other.judge_seconds;
         self.discarded += other.discarded;
+        self.rounds += other.rounds;
     }
 }
 

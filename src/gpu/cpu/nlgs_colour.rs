@@ -1,13 +1,14 @@
 //! Mirror of `shaders/nlgs_colour.wgsl`: one colour of a coloured NLGS sweep (matrix-free).
 //! Contacts of a colour are independent, so running them in order is the parallel result.
 //! With a `threshold` > 0 (the work list's sweeps) a contact whose residual in velocity units is
-//! within it is left alone.
+//! within it is left alone, and the contacts updated are counted.
 
 use super::contact_gather::gather_one;
 use super::single_contact::{solve_single_contact, velocity_residual};
 use crate::gpu::layout::{MatrixFreeLayout, NO_ANTAGONIST};
 
-/// The CPU mirror of `nlgs_colour`: the same bindings and order of operations in f32.
+/// The CPU mirror of `nlgs_colour`: the same bindings and order of operations in f32. Returns
+/// the contacts updated when `threshold` > 0 (what the kernel adds to its counter), else 0.
 #[allow(clippy::too_many_arguments)]
 pub fn nlgs_colour(
     op: &MatrixFreeLayout,
@@ -18,7 +19,8 @@ pub fn nlgs_colour(
     threshold: f32,
     r: &mut [[f32; 2]],
     v: &mut [[f32; 4]],
-) {
+) -> u32 {
+    let mut updated = 0;
     for &a in contacts_of_colour {
         let a = a as usize;
         let c = &op.contacts[a];
@@ -60,5 +62,11 @@ pub fn nlgs_colour(
         if c.j != NO_ANTAGONIST {
             scatter(c.j as usize, -1.0, tj);
         }
+        updated += 1;
+    }
+    if threshold > 0.0 {
+        updated
+    } else {
+        0
     }
 }
