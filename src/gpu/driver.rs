@@ -81,9 +81,9 @@ impl PerIteration {
 
 /// Rounds of thresholded sweeps a solve may run per iteration of `max_iter` when its iterations
 /// count updates: a round that updates few contacts still costs its dispatches. On an H200 a
-/// round of the 10,000-disk pile's colours cost 25 µs and a full sweep on 16 CPU cores 0.29 ms,
-/// of the sandbox's 44 µs and 1.15 ms: 32 rounds an iteration keep a GPU solve's worst case near
-/// the CPU's. (The deposit's steps took up to 10,112 rounds, 2,000 of them allowed before.)
+/// round of the 10,000-disk pile's colours cost 25–32 µs and a full sweep on 16 CPU cores 0.29 ms,
+/// of the sandbox's 44 µs and 1.15 ms: 32 rounds, 1.2–2.8 CPU sweeps, an iteration keep a GPU
+/// solve's worst case near the CPU's. (The deposit's steps took up to 10,112 rounds.)
 pub const ROUNDS_PER_COUNTED_ITERATION: usize = 32;
 
 /// Runs `record(pass)` (one iteration) until a stop; `r_buf` holds the impulses.
