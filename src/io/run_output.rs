@@ -48,6 +48,7 @@ struct Row {
     gpu_judged: usize,
     gpu_judge_seconds: f64,
     gpu_discarded: usize,
+    gpu_rounds: usize,
     velocity_scale: f64,
 }
 
@@ -408,6 +409,7 @@ impl RunOutput {
             gpu_judged: r.gpu_checks.judged,
             gpu_judge_seconds: r.gpu_checks.judge_seconds,
             gpu_discarded: r.gpu_checks.discarded,
+            gpu_rounds: r.gpu_checks.rounds,
             velocity_scale: r.velocity_scale,
         })?;
         Ok(())
