@@ -67,18 +67,6 @@ pub fn chunked_sums<const M: usize>(n: usize, term: impl Fn(usize) -> [f64; M] +
 /// with the same sums to the bit as the two passes.
 pub fn fill_and_sum<const M: usize>(
     n: usize,
-    out: (&mut [f64], usize),
-    fill: impl Fn(usize, &mut [f64]) + Sync,
-    term: impl Fn(usize, &[f64]) -> [f64; M] + Sync,
-) -> [f64; M] {
-    fill_and_reduce::<M, 0>(n, out, fill, term)
-}
-
-/// [`fill_and_sum`] whose last `X` of the `M` terms are maximised instead of summed (from 0, NaN
-/// terms left out, as [`max_over`]): the sums are the same bits as [`fill_and_sum`]'s, and a
-/// maximum is the same in any order.
-pub fn fill_and_reduce<const M: usize, const X: usize>(
-    n: usize,
     (out, per): (&mut [f64], usize),
     fill: impl Fn(usize, &mut [f64]) + Sync,
     term: impl Fn(usize, &[f64]) -> [f64; M] + Sync,
@@ -87,17 +75,14 @@ pub fn fill_and_reduce<const M: usize, const X: usize>(
         let first = c * CHUNK;
         fill(first, part);
         let part = &*part;
-        lane_reduce::<M, X>(first, (first + CHUNK).min(n), |k| term(k, &part[per * (k - first)..per * (k - first + 1)]))
+        lane_sums(first, (first + CHUNK).min(n), |k| term(k, &part[per * (k - first)..per * (k - first + 1)]))
     };
     let out = &mut out[..per * n];
     let partials: Vec<[f64; M]> = match parallel(n) {
         true => out.par_chunks_mut(per * CHUNK).enumerate().map(chunk).collect(),
         false => out.chunks_mut(per * CHUNK).enumerate().map(chunk).collect(),
     };
-    std::array::from_fn(|m| match m + X >= M {
-        true => partials.iter().fold(0.0f64, |x, p| x.max(p[m])),
-        false => partials.iter().map(|p| p[m]).sum(),
-    })
+    std::array::from_fn(|m| partials.iter().map(|p| p[m]).sum())
 }
 
 /// `max(0, term(0), …, term(n − 1))`, NaN terms left out, on threads when `n` is large: a maximum
@@ -192,32 +177,18 @@ pub fn split_lengths<T>(mut slice: &mut [T], lengths: impl IntoIterator<Item = u
 /// each add.
 #[inline]
 fn lane_sums<const M: usize>(lo: usize, hi: usize, term: impl Fn(usize) -> [f64; M]) -> [f64; M] {
-    lane_reduce::<M, 0>(lo, hi, term)
-}
-
-/// [`lane_sums`] whose last `X` terms are maximised (NaN left out) instead of summed.
-#[inline]
-fn lane_reduce<const M: usize, const X: usize>(lo: usize, hi: usize, term: impl Fn(usize) -> [f64; M]) -> [f64; M] {
-    let add = |lane: &mut [f64; M], t: [f64; M]| {
-        for m in 0..M {
-            lane[m] = if m + X >= M { lane[m].max(t[m]) } else { lane[m] + t[m] };
-        }
-    };
     let mut lanes = [[0.0; M]; 4];
     let mut k = lo;
     while k + 4 <= hi {
         for (j, lane) in lanes.iter_mut().enumerate() {
-            add(lane, term(k + j));
+            lane.iter_mut().zip(term(k + j)).for_each(|(l, t)| *l += t);
         }
         k += 4;
     }
     for (j, lane) in lanes.iter_mut().enumerate().take(hi - k) {
-        add(lane, term(k + j));
+        lane.iter_mut().zip(term(k + j)).for_each(|(l, t)| *l += t);
     }
-    std::array::from_fn(|m| match m + X >= M {
-        true => lanes[0][m].max(lanes[1][m]).max(lanes[2][m].max(lanes[3][m])),
-        false => (lanes[0][m] + lanes[1][m]) + (lanes[2][m] + lanes[3][m]),
-    })
+    std::array::from_fn(|m| (lanes[0][m] + lanes[1][m]) + (lanes[2][m] + lanes[3][m]))
 }
 
 /// Runs `f` on a thread of rayon's global pool, or in place when already on a pool's thread.

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use super::colouring::Colouring;
 use super::{BlockSparse, Mat2};
-use crate::parallel::{fill_and_reduce, first_failure, map_indices, parallel, CHUNK};
+use crate::parallel::{fill_and_sum, first_failure, map_indices, parallel, CHUNK};
 
 /// Contact ranges `(first, end)` by colour: blocks of one colour share no moving body.
 pub type BlockColours = Vec<Vec<(usize, usize)>>;
@@ -826,9 +826,8 @@ impl MatrixFree {
     }
 
     /// `out = B v + q` as [`Self::contact_velocities_plus`] makes it (no rolling rows), and the
-    /// [`fill_and_reduce`] of `term(a, u_a)` over the contacts (its last `X` terms maximised, the
-    /// others summed), each taken as its chunk is made.
-    pub fn contact_velocities_reducing<const M: usize, const X: usize>(
+    /// [`fill_and_sum`] of `term(a, u_a)` over the contacts, each taken as its chunk is made.
+    pub fn contact_velocities_summing<const M: usize>(
         &self,
         v: &[f64],
         q: &[f64],
@@ -837,7 +836,7 @@ impl MatrixFree {
     ) -> [f64; M] {
         assert!(!self.has_rolling(), "the pairs' gather only");
         let gather = |first: usize, part: &mut [f64]| self.gather_pairs(first, v, |x, k| x + q[k], part);
-        fill_and_reduce::<M, X>(self.rows.len(), (out, 2), gather, |a, u| term(a, [u[0], u[1]]))
+        fill_and_sum(self.rows.len(), (out, 2), gather, |a, u| term(a, [u[0], u[1]]))
     }
 
     /// The (n, t) velocities of contacts `first..` into `out`, a pair each, entry `k` of `B v`

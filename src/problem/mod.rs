@@ -198,38 +198,17 @@ impl ContactProblem {
     /// [`residual::problem_error`] of `(r, u)`: for a matrix-free problem without rolling rows the
     /// error's terms are taken as the gather makes `u`, in one pass (the same bits as two).
     pub fn velocity_and_error(&self, r: &[f64], u: &mut [f64]) -> (Option<Vec<f64>>, f64) {
-        let (v, error, _) = self.velocity_and_errors(r, u, false);
-        (v, error)
-    }
-
-    /// [`Self::velocity_and_error`], and with `worst` (and the error taken in the product's
-    /// pass) the largest contact residual in velocity units that the velocity tests divide by
-    /// their scale ([`residual::contact_velocity_residual`]), taken in the same pass.
-    pub fn velocity_and_errors(&self, r: &[f64], u: &mut [f64], worst: bool) -> (Option<Vec<f64>>, f64, Option<f64>) {
         match &self.w {
             Delassus::MatrixFree(op) if self.error_in_product() => {
                 let v = op.body_velocities(r);
                 let data = (&self.q[..], &self.mu[..], &self.gap_rate[..], r);
-                let natural = |a, ua| residual::natural_terms(data, a, ua);
-                let (sums, largest) = match worst {
-                    false => (op.contact_velocities_reducing::<4, 0>(&v, &self.q, u, natural), None),
-                    true => {
-                        let diag = op.diag_blocks();
-                        let terms = |a: usize, ua: [f64; 2]| {
-                            let [f, q, r2, u2] = natural(a, ua);
-                            let ra = [r[2 * a], r[2 * a + 1]];
-                            [f, q, r2, u2, residual::contact_velocity_residual(diag[a][0], ra, ua, self.mu[a], None)]
-                        };
-                        let [f, q, r2, u2, largest] = op.contact_velocities_reducing::<5, 1>(&v, &self.q, u, terms);
-                        ([f, q, r2, u2], Some(largest))
-                    }
-                };
+                let sums = op.contact_velocities_summing(&v, &self.q, u, |a, ua| residual::natural_terms(data, a, ua));
                 let error = residual::natural_error_of(sums).unwrap_or_else(|| residual::problem_error(self, r, u));
-                (Some(v), error, largest)
+                (Some(v), error)
             }
             _ => {
                 let v = self.velocity_keeping_bodies(r, u);
-                (v, residual::problem_error(self, r, u), None)
+                (v, residual::problem_error(self, r, u))
             }
         }
     }

@@ -235,23 +235,18 @@ impl<'a> Monitor<'a> {
         let t = Instant::now();
         let mut uu = std::mem::take(&mut self.scratch_u);
         let own_product = u.is_none();
-        let (u, err, worst) = match u {
-            Some(u) => (u, problem_error(self.problem, r, u), None),
+        let (u, err) = match u {
+            Some(u) => (u, problem_error(self.problem, r, u)),
             None => {
-                // A velocity test's worst contact taken in the product's pass too.
-                let with_worst = self.measure.is_velocity_test();
-                let (v, err, worst) = self.problem.velocity_and_errors(r, &mut uu, with_worst);
+                let (v, err) = self.problem.velocity_and_error(r, &mut uu);
                 self.scratch_body_velocity = v;
                 if !excluded {
                     self.w_products += 1;
                 }
-                (&uu[..], err, worst)
+                (&uu[..], err)
             }
         };
-        let judged = match worst {
-            Some(worst) => self.measure.of_worst(worst),
-            None => self.judged(r, u, err),
-        };
+        let judged = self.judged(r, u, err);
         self.scratch_u = uu;
         self.scratch_check = own_product.then_some((self.iteration, err, judged));
         if excluded {

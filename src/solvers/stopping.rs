@@ -47,20 +47,6 @@ impl JudgedMeasure {
             None => natural,
         }
     }
-
-    /// Whether this is a velocity test (its measure is the worst contact residual over a scale).
-    pub fn is_velocity_test(&self) -> bool {
-        self.velocity_test.is_some()
-    }
-
-    /// A velocity test's measure from the worst contact residual taken elsewhere (in a product's
-    /// pass, [`ContactProblem::velocity_and_errors`]): what [`Self::of`] gives, to the bit.
-    pub fn of_worst(&self, worst: f64) -> f64 {
-        match &self.velocity_test {
-            Some((_, scale)) if *scale > f64::EPSILON => worst / scale,
-            _ => worst,
-        }
-    }
 }
 
 /// What a velocity test divides the worst contact residual by: one step of the applied
