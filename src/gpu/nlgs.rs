@@ -6,8 +6,10 @@
 //! The work list (`ordering = "worklist"`) is kept on the GPU as thresholded sweeps: a contact is
 //! updated only while its residual in velocity units exceeds the CPU list's threshold, so that
 //! contacts within the tolerance do not drift, and a sweep that updates nothing meets the
-//! velocity test. A sweep still costs its dispatches whatever it updates: the count that matters
-//! here is sweeps, not updates (the CPU list's FIFO would be one dispatch per update).
+//! velocity test. The kernel counts its updates, and the solve's iterations are sweeps' worth of
+//! them as on the CPU's list, so `max_iter` bounds the same work on both devices; a round still
+//! costs its dispatches whatever it updates, and the driver bounds rounds apart
+//! ([`super::driver::ROUNDS_PER_COUNTED_ITERATION`]).
 
 use std::time::Instant;
 
