@@ -292,7 +292,7 @@ fn gpu_scene_rows(p: &ContactProblem, opts: &SolverOptions, a: &BenchArgs) -> Re
     let times = nlgs_sweep_times(&ctx, p, a.sweeps, depth)?;
     let sweep = times.sweep;
     let backend = Backend::gpu(ctx);
-    println!("| Anderson | contacts | NLGS sweep ms (kernels only) | colours | largest colour's dispatch ms | contact updates/s | solve to tol {:.0e}: sweeps, ms per GPU sweep | error estimates, judged in f64 (CPU ms) |", opts.tol);
+    println!("| Anderson | contacts | NLGS sweep ms (kernels only) | colours | largest colour's dispatch ms | contact updates/s | solve to tol {:.0e}: sweeps, ms per GPU sweep (a work list's: per round) | error estimates, judged in f64 (CPU ms) |", opts.tol);
     println!("|---|---|---|---|---|---|---|---|");
     // The plain sweeps, and the scene's mixing when it has one: what the mixer saves in sweeps
     // and costs per sweep.
