@@ -295,6 +295,28 @@ fn gpu_solvers_solve_what_the_cpu_solves() {
     let _ = to_f32_pairs(&[0.0, 0.0]);
 }
 
+/// A GPU solve runs its first batch before it may stop, as the CPU's sweeps run before their
+/// first check: a warm start that meets tol is not handed back unchanged (on an H200 the pile at
+/// rest under the natural map sank 11× deeper than on the CPU when it was), and a converged
+/// batch is returned even where its f32 error lies above the warm start's, as the CPU returns
+/// its converged last iterate.
+#[test]
+fn a_gpu_solve_sweeps_before_it_stops_even_from_a_warm_start_that_meets_tol() {
+    let Some(ctx) = common::gpu_context() else { return };
+    let p = lattice_packing(30, 15, 0.5, 2);
+    let loose = solve(&p, SolverKind::Nlgs, &SolverOptions { tol: 1e-3, ..Default::default() }, None);
+    assert!(loose.converged, "{}", loose.stop_reason);
+    let opts = SolverOptions { tol: 1e-2, anderson: 0, ..Default::default() };
+    for kind in [SolverKind::Nlgs, SolverKind::Jacobi, SolverKind::Pcpg] {
+        let run = moreau::gpu::solve(&ctx, &p, kind, &opts, Some(&loose.r)).unwrap();
+        assert!(run.converged && run.iterations >= 1, "{kind}: {} iterations ({})", run.iterations, run.stop_reason);
+        // What comes back is the batch's, not the warm start in f32.
+        let scale = loose.r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let moved = run.r.iter().zip(&loose.r).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(moved > 1e-5 * scale, "{kind}: moved {moved:.2e} of {scale:.2e}");
+    }
+}
+
 /// The step-velocity test on the GPU holds every contact to tol × g h, as on the CPU: the stack
 /// beside a grain sliding at 3 m/s (whose 3 m/s would be the velocity test's scale), colour
 /// sweeps and the work list's thresholded sweeps, each contact's residual checked in f64 from
