@@ -103,20 +103,25 @@ pub fn iterate(
     let products_per_iteration = per_iteration.products;
     // A batch of `sweeps` sweeps' worth, in iterations.
     let iterations_of = |sweeps: usize| (sweeps / per_iteration.sweeps.max(1)).max(1);
-    let mut checker = Checker::new(ctx, p, gp, r_buf, opts.criterion);
+    let checker = Checker::new(ctx, p, gp, r_buf, opts.criterion, per_iteration.updates.clone());
     // Counted updates: iterations are sweeps' worth of them, rounds bounded apart.
     let counting = per_iteration.updates.is_some();
-    checker.counter = per_iteration.updates.clone();
     let rounds_cap = match counting {
         true => opts.max_iter.saturating_mul(ROUNDS_PER_COUNTED_ITERATION),
         false => opts.max_iter,
     };
     let contacts = p.n_contacts().max(1) as u64;
     let (mut updates, mut last_count, mut idle_check) = (0u64, 0u32, false);
-    // Iterations reported and rounds run at the last check read: until the next is read, a
-    // round may have updated every contact (a sweep's worth), so batches stay within max_iter.
-    let (mut known_spent, mut known_at) = (0usize, 0usize);
-    let worth = |updates: u64| updates.div_ceil(contacts) as usize;
+    // Iterations as reported after `rounds` rounds with `updates` counted.
+    let spent_after = |rounds: usize, updates: u64| match counting {
+        true => updates.div_ceil(contacts) as usize,
+        false => rounds,
+    };
+    // The next batch from round `at`, at most `spent` iterations spent by then: a round may
+    // update every contact (a sweep's worth), so a batch stays within max_iter whatever it updates.
+    let batch_from = |batch: usize, at: usize, spent: usize| {
+        iterations_of(batch).min(rounds_cap - at).min(opts.max_iter.saturating_sub(spent))
+    };
     let measure = JudgedMeasure::new(p, opts.criterion);
     let judge = |r: &[f64]| {
         let (natural, u) = error_of(p, r);
@@ -181,16 +186,16 @@ pub fn iterate(
     let (stop, stop_reason) = match (opts.max_iter == 0).then(|| stop_at(error, 0, 0, false, &stall)).flatten() {
         Some(stop) => stop,
         None => {
-            let first = iterations_of(batch).min(rounds_cap).min(opts.max_iter);
+            let first = batch_from(batch, 0, 0);
             run_batch(first);
             let mut in_flight = (checker.submit(ctx, likely_judged(error)), first);
             loop {
                 let (check, at) = in_flight;
                 // The next batch is queued before the check's numbers are waited for: the GPU
                 // sweeps while they travel back and the CPU reads them.
-                let unread = at - known_at;
-                let mut ahead =
-                    iterations_of(batch).min(rounds_cap - at).min(opts.max_iter.saturating_sub(known_spent + unread));
+                // `iterations` and `updates` are still the last check's: the rounds since may
+                // each have been a sweep's worth.
+                let mut ahead = batch_from(batch, at, spent_after(iterations, updates) + (at - iterations));
                 if ahead > 0 {
                     run_batch(ahead);
                 }
@@ -225,8 +230,7 @@ pub fn iterate(
                 } else {
                     error = estimate;
                 }
-                let spent = if counting { worth(updates) } else { iterations };
-                (known_spent, known_at) = (spent, iterations);
+                let spent = spent_after(iterations, updates);
                 history.push(HistoryPoint {
                     iteration: spent,
                     seconds: start.elapsed().as_secs_f64(),
@@ -257,7 +261,7 @@ pub fn iterate(
                 if ahead == 0 {
                     // Held back by the bound on updates not yet read, which this check read: the
                     // next batch runs before the next check (no stop here: rounds and work left).
-                    ahead = iterations_of(batch).min(rounds_cap - at).min(opts.max_iter - spent);
+                    ahead = batch_from(batch, at, spent);
                     run_batch(ahead);
                 }
                 in_flight = (checker.submit(ctx, likely_judged(error)), at + ahead);
@@ -293,7 +297,7 @@ pub fn iterate(
             updates as f64 / contacts as f64
         ));
     }
-    let iterations = if counting { worth(updates) } else { iterations };
+    let iterations = spent_after(iterations, updates);
     Ok(SolveReport {
         solver: kind,
         converged,
@@ -379,7 +383,14 @@ struct PendingCheck {
 }
 
 impl Checker {
-    fn new(ctx: &GpuContext, p: &ContactProblem, gp: &GpuProblem, r_buf: &GpuBuffer, criterion: StopCriterion) -> Self {
+    fn new(
+        ctx: &GpuContext,
+        p: &ContactProblem,
+        gp: &GpuProblem,
+        r_buf: &GpuBuffer,
+        criterion: StopCriterion,
+        counter: Option<GpuBuffer>,
+    ) -> Self {
         let nc = p.n_contacts();
         let kernels = gp.kernels.clone();
         let u = storage(ctx, "u check", &vec![[0.0f32; 2]; nc]);
@@ -412,7 +423,7 @@ impl Checker {
             Estimate::Natural { residual, dots, scalars, q_norm, gap_norm, groups: groups(nc), _buffers: [f, partials] }
         };
         let snapshot = storage(ctx, "r at check", &vec![[0.0f32; 2]; nc]);
-        Self { operator, kernels, estimate, r_buf: r_buf.clone(), snapshot, contacts: nc, counter: None, _u: u }
+        Self { operator, kernels, estimate, r_buf: r_buf.clone(), snapshot, contacts: nc, counter, _u: u }
     }
 
     /// Submits the estimate of the impulses the solver's buffer holds now, keeping a copy of them

@@ -106,6 +106,7 @@ fn nlgs_stage(
         storage(ctx, "q", q),
         storage(ctx, "mu", mu),
     ];
+    let first_index = bufs.len();
     bufs.extend(indices.iter().map(|(name, x)| storage(ctx, name, x)));
     bufs.extend([storage(ctx, "r", r), storage(ctx, "v", v)]);
     let mut names = vec!["contacts", "inv_mass", "diag", "q", "mu"];
@@ -117,7 +118,7 @@ fn nlgs_stage(
     submit(ctx, "stage", |pass| dispatch(pass, kernel, &group, workgroups));
     let n = bufs.len();
     let updates = match indices.iter().position(|(name, _)| *name == "updates") {
-        Some(i) => read_back::<u32>(ctx, &bufs[5 + i], 1).map_err(GpuError::Runtime)?[0],
+        Some(i) => read_back::<u32>(ctx, &bufs[first_index + i], 1).map_err(GpuError::Runtime)?[0],
         None => 0,
     };
     let r_v = (
