@@ -342,18 +342,10 @@ fn the_gpu_holds_every_contact_to_a_step_of_gravity_under_the_step_velocity_test
     }
 }
 
-/// The work list's thresholded sweeps count their iterations as the CPU's list does, in sweeps'
-/// worth of contact updates, so `max_iter` bounds the same work on both devices: a pile step's
-/// answer for free velocities 2 % off is met again in more rounds than `max_iter` and fewer
-/// sweeps' worth, where counting rounds stopped it at `max_iter`; colour sweeps with no
-/// threshold count rounds; a solve held to one sweep's worth stops there.
-#[test]
-fn the_gpu_work_list_counts_sweeps_worth_of_updates_as_the_cpu_list_does() {
-    use moreau::gpu::driver::ROUNDS_PER_COUNTED_ITERATION;
-    use moreau::solvers::{Ordering, StopCriterion};
-    let Some(ctx) = common::gpu_context() else { return };
-    // The 400-disk pile's 120th step (595 contacts), answered to 1e-7, for free velocities up to
-    // 2 % off: a step's warm start.
+/// The 400-disk pile's 120th step (595 contacts) for free velocities up to 2 % off, and its
+/// answer to 1e-7 before: a step's warm start.
+fn pile_step_warm_start() -> (ContactProblem, Vec<f64>) {
+    use moreau::solvers::StopCriterion;
     let s = moreau::scene::load(Path::new("scenes/pile.toml")).unwrap();
     let mut sim = moreau::stepping::Simulation::new(s.world, s.settings).unwrap();
     sim.keep_problems(true);
@@ -365,6 +357,20 @@ fn the_gpu_work_list_counts_sweeps_worth_of_updates_as_the_cpu_list_does() {
         SolverOptions { tol: 1e-7, max_iter: 100_000, criterion: StopCriterion::Velocity, ..Default::default() };
     let r0 = solve(&p, SolverKind::Nlgs, &exact, None).r;
     p.q.iter_mut().enumerate().for_each(|(k, q)| *q *= 1.0 + 0.02 * ((k as f64) * 0.7).sin());
+    (p, r0)
+}
+
+/// The work list's thresholded sweeps count their iterations as the CPU's list does, in sweeps'
+/// worth of contact updates, so `max_iter` bounds the same work on both devices: a pile step's
+/// answer for free velocities 2 % off is met again in more rounds than `max_iter` and fewer
+/// sweeps' worth, where counting rounds stopped it at `max_iter`; colour sweeps with no
+/// threshold count rounds; a solve held to one sweep's worth stops there.
+#[test]
+fn the_gpu_work_list_counts_sweeps_worth_of_updates_as_the_cpu_list_does() {
+    use moreau::gpu::driver::ROUNDS_PER_COUNTED_ITERATION;
+    use moreau::solvers::{Ordering, StopCriterion};
+    let Some(ctx) = common::gpu_context() else { return };
+    let (p, r0) = pile_step_warm_start();
     // (The f32 sweeps stall near 3.5e-4 of the velocity test here.)
     let listed = |max_iter| SolverOptions {
         tol: 5e-4,
@@ -395,6 +401,39 @@ fn the_gpu_work_list_counts_sweeps_worth_of_updates_as_the_cpu_list_does() {
         "{} rounds",
         short.gpu_checks.rounds
     );
+}
+
+/// Near tol a GPU solve checks every √(4 × rounds run), from 16 to 128 rounds: the batch queued
+/// past the check that stops it, dropped, stays that small against the rounds run (a batch that
+/// doubled while the error stayed near tol ran the 10,000-disk pile at rest to twice the rounds
+/// it needed). A pile step's warm start for free velocities 2 % off, under the work list's
+/// thresholded sweeps and colour sweeps, and a lattice from zero.
+#[test]
+fn a_gpu_solve_near_tol_queues_past_its_last_check_a_batch_small_against_its_rounds() {
+    use moreau::gpu::driver::near_tol_batch;
+    use moreau::solvers::{Ordering, StopCriterion};
+    let Some(ctx) = common::gpu_context() else { return };
+    let (p, r0) = pile_step_warm_start();
+    let warm = |ordering, tol| SolverOptions {
+        tol,
+        max_iter: 20_000,
+        criterion: StopCriterion::Velocity,
+        ordering,
+        anderson: 0,
+        ..Default::default()
+    };
+    let lattice = lattice_packing(20, 10, 0.3, 3);
+    let runs = [
+        ("work list", &p, warm(Ordering::Worklist, 5e-4), Some(&r0[..])),
+        ("colour sweeps", &p, warm(Ordering::Colours, 5e-4), Some(&r0[..])),
+        ("lattice", &lattice, SolverOptions { tol: 1e-5, max_iter: 20_000, ..Default::default() }, None),
+    ];
+    for (name, p, opts, r0) in runs {
+        let run = moreau::gpu::solve(&ctx, p, SolverKind::Nlgs, &opts, r0).unwrap();
+        let (rounds, dropped) = (run.gpu_checks.rounds, run.gpu_checks.discarded);
+        assert!(run.converged, "{name}: {}", run.stop_reason);
+        assert!(dropped > 0 && dropped <= near_tol_batch(rounds), "{name}: {dropped} dropped after {rounds} rounds");
+    }
 }
 
 /// Block sweeps (`block_sweeps`: each workgroup sweeps a block of 4,096 contacts several times

@@ -7,8 +7,8 @@
 //! contacts comes back, with a sum that shows a diverged iterate), and the f64 judge is the
 //! CPU's [`JudgedMeasure`]. Stop at the tolerance, at max_iter, or when the
 //! error stops improving below 1e-3 (a plateau where f32 may be the limit, reported). K doubles
-//! while the error is more than 100 × tol away; near tol it starts again at 16 and doubles up to
-//! 128 while the error stays near.
+//! while the error is more than 100 × tol away; near tol it is [`near_tol_batch`]: √(4 × the
+//! iterations run), 16 to 128.
 //!
 //! A check's numbers take a round trip (submit, wait, map) that costs dozens of sweeps on a
 //! hardware GPU. The next batch is queued before they are waited for, so the GPU sweeps while
@@ -86,6 +86,16 @@ impl PerIteration {
 /// solve's worst case near the CPU's. (The deposit's steps took up to 10,112 rounds.)
 pub const ROUNDS_PER_COUNTED_ITERATION: usize = 32;
 
+/// The batch between checks once the error is within 100 × tol, after `run` iterations (rounds of
+/// a work list): √(4 × run), from 16 to 128. The batch queued past the check that stops is
+/// dropped, so it is kept short against what the solve has already run (at most 2/√run of it);
+/// a check costs a product and a round trip, so they are spaced out as the solve goes on. (A
+/// batch that doubled while the error stayed near tol ran the 10,000-disk pile at rest, 32
+/// to 64 rounds each, to 128 and 256 rounds: half of its dispatches were dropped.)
+pub fn near_tol_batch(run: usize) -> usize {
+    (4 * run).isqrt().clamp(16, 128)
+}
+
 /// Runs `record(pass)` (one iteration) until a stop; `r_buf` holds the impulses.
 #[allow(clippy::too_many_arguments)]
 pub fn iterate(
@@ -132,7 +142,7 @@ pub fn iterate(
     let (mut best, mut best_r) = (error, r.clone());
     let mut stall = StallWatch::new(error);
     let mut iterations = 0usize;
-    let (mut batch, mut near) = (8usize, false);
+    let mut batch = 8usize;
     let mut checks = GpuChecks::default();
     let run_batch = |k: usize| {
         submit(ctx, kind.name(), |pass| {
@@ -242,17 +252,11 @@ pub fn iterate(
                     best = error;
                     best_r.clone_from(&r);
                 }
-                // Far from the tolerance, read back less often. Near it, every 16 iterations at
-                // first, then less often the longer the error stays near (up to every 128): a
-                // check costs a sync and a product, dozens of sweeps on a GPU, and a solve that
-                // hovers near tol for thousands of sweeps would spend most of its time checking;
-                // the sweeps run past the point tol is met stay fewer than those already spent near it.
-                batch = match (error > 100.0 * opts.tol, near) {
-                    (true, _) => (2 * batch).min(512),
-                    (false, false) => 16,
-                    (false, true) => (2 * batch).clamp(16, 128),
+                // Far from the tolerance, read back less often; near it, see `near_tol_batch`.
+                batch = match error > 100.0 * opts.tol {
+                    true => (2 * batch).min(512),
+                    false => near_tol_batch(at),
                 };
-                near = error <= 100.0 * opts.tol;
                 if let Some(stop) = stop_at(error, iterations, spent, idle_check, &stall) {
                     // Run past this check and not used: its impulses are returned.
                     checks.discarded = ahead;
