@@ -47,11 +47,18 @@ if [ "${SWEEPS:-1}" != 0 ]; then
     done
 fi
 
-# name binary: GPU steps of the sandbox and of the settled pile, one binary after the other.
+# name binary: GPU steps of the sandbox, of the pile at rest and of the settled pile, one binary
+# after the other.
 gpu_steps() {
     say "$1: sandbox on the GPU, tol 1e-4 (the scene's NLGS)"
     timeout 90 "$2" run scenes/sandbox.toml --device gpu --steps 5 --vtk-every 0 --quiet \
         --out "$OUT/runs/$1_sandbox_gpu" 2>&1 | tee -a "$log"
+    if [ -n "$at_rest" ]; then
+        # The scene's setting: where the checks' cadence near tol decides the dispatches.
+        say "$1: pile_10k at rest (3,000 steps) on the GPU, as the scene sets it"
+        timeout 60 "$2" run scenes/pile_10k.toml --restart "$at_rest" --device gpu --steps 30 --quiet \
+            --out "$OUT/runs/$1_rest_pile_gpu" 2>&1 | grep -v "^warning" | tee -a "$log"
+    fi
     [ -n "$settled" ] || return
     # The scene's own settings (step-velocity, work list), and the same with block sweeps.
     for setting in "--tol 1e-2" "--tol 1e-4" "--tol 1e-4 --ordering worklist --criterion velocity --anderson 0" \
