@@ -132,18 +132,6 @@ pub fn iterate(
     let batch_from = |batch: usize, at: usize, spent: usize| {
         iterations_of(batch).min(rounds_cap - at).min(opts.max_iter.saturating_sub(spent))
     };
-    let measure = JudgedMeasure::new(p, opts.criterion);
-    let judge = |r: &[f64]| {
-        let (natural, u) = error_of(p, r);
-        (measure.of(p, r, &u, natural), natural, u)
-    };
-    let (mut error, ..) = judge(&r);
-    let mut history = vec![HistoryPoint { iteration: 0, seconds: start.elapsed().as_secs_f64(), w_products: 0, error }];
-    let (mut best, mut best_r) = (error, r.clone());
-    let mut stall = StallWatch::new(error);
-    let mut iterations = 0usize;
-    let mut batch = 8usize;
-    let mut checks = GpuChecks::default();
     let run_batch = |k: usize| {
         submit(ctx, kind.name(), |pass| {
             for _ in 0..k {
@@ -151,6 +139,32 @@ pub fn iterate(
             }
         })
     };
+    let mut batch = 8usize;
+    // A solve runs its first batch before it may stop, as the CPU's sweeps run before their first
+    // check: a warm start that meets tol is not handed back unchanged (the pile at rest under the
+    // natural map sank 11× deeper on an H200 than on the CPU when it was). It is queued before the
+    // warm start is judged, which the GPU's sweeps then hide.
+    let first = match opts.max_iter {
+        0 => 0,
+        _ => batch_from(batch, 0, 0),
+    };
+    if first > 0 {
+        run_batch(first);
+    }
+    let measure = JudgedMeasure::new(p, opts.criterion);
+    let judge = |r: &[f64]| {
+        let (natural, u) = error_of(p, r);
+        (measure.of(p, r, &u, natural), natural, u)
+    };
+    // The f64 judgement of `r` whenever `judged_last` holds (the warm start's to begin with): the
+    // report takes it rather than judging the same impulses again.
+    let mut last_judgement = judge(&r);
+    let mut error = last_judgement.0;
+    let mut history = vec![HistoryPoint { iteration: 0, seconds: start.elapsed().as_secs_f64(), w_products: 0, error }];
+    let (mut best, mut best_r) = (error, r.clone());
+    let mut stall = StallWatch::new(error);
+    let mut iterations = 0usize;
+    let mut checks = GpuChecks::default();
     // `iterations`: rounds run; `spent`: iterations as reported (sweeps' worth of counted
     // updates); `idle`: counted sweeps that updated nothing since the last check.
     let stop_at = |error: f64, iterations: usize, spent: usize, idle: bool, stall: &StallWatch| {
@@ -190,14 +204,9 @@ pub fn iterate(
     let likely_judged = |error: f64| error <= 10.0 * opts.tol;
     // Whether `r` holds the last check's impulses, judged.
     let mut judged_last = true;
-    // A solve runs its first batch before it may stop, as the CPU's sweeps run before their first
-    // check: a warm start that meets tol is not handed back unchanged (the pile at rest under the
-    // natural map sank 11× deeper on an H200 than on the CPU when it was).
-    let (stop, stop_reason) = match (opts.max_iter == 0).then(|| stop_at(error, 0, 0, false, &stall)).flatten() {
+    let (stop, stop_reason) = match (first == 0).then(|| stop_at(error, 0, 0, false, &stall)).flatten() {
         Some(stop) => stop,
         None => {
-            let first = batch_from(batch, 0, 0);
-            run_batch(first);
             let mut in_flight = (checker.submit(ctx, likely_judged(error)), first);
             loop {
                 let (check, at) = in_flight;
@@ -234,7 +243,8 @@ pub fn iterate(
                     r = to_f64(&impulses);
                     // Judge what would be returned: f32 impulses (and APGD's lagging box) landed on the f64 cone.
                     land_on_cone(p, &mut r);
-                    error = judge(&r).0;
+                    last_judgement = judge(&r);
+                    error = last_judgement.0;
                     checks.judged += 1;
                     checks.judge_seconds += judging.elapsed().as_secs_f64();
                 } else {
@@ -274,11 +284,14 @@ pub fn iterate(
     };
     // The last check's impulses (the GPU's buffer may hold a discarded batch past them), judged
     // in f64; the best f64-judged ones if those were better.
-    if !judged_last {
-        r = to_f64(&checker.snapshot(ctx)?);
-        land_on_cone(p, &mut r);
-    }
-    let (mut judged, mut error, mut u) = judge(&r);
+    let (mut judged, mut error, mut u) = match judged_last {
+        true => last_judgement,
+        false => {
+            r = to_f64(&checker.snapshot(ctx)?);
+            land_on_cone(p, &mut r);
+            judge(&r)
+        }
+    };
     // As on the CPU: a solve that did not converge returns its best iterate (the warm start
     // among them) when that is better than its last; one that converged, its last.
     if (judged.is_nan() || (judged > opts.tol && judged > best)) && best.is_finite() {
