@@ -90,8 +90,8 @@ pub const ROUNDS_PER_COUNTED_ITERATION: usize = 32;
 /// a work list): √(4 × run), from 16 to 128. The batch queued past the check that stops is
 /// dropped, so it is kept short against what the solve has already run (at most 2/√run of it);
 /// a check costs a product and a round trip, so they are spaced out as the solve goes on. (A
-/// batch that doubled while the error stayed near tol ran the 10,000-disk pile at rest, 32
-/// to 64 rounds each, to 128 and 256 rounds: half of its dispatches were dropped.)
+/// batch that doubled while the error stayed near tol ran the 10,000-disk pile at rest for 234
+/// rounds a step, 104 of them dropped, where its steps meet tol in 86 on average.)
 pub fn near_tol_batch(run: usize) -> usize {
     (4 * run).isqrt().clamp(16, 128)
 }
