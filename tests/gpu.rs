@@ -384,6 +384,7 @@ fn the_gpu_work_list_counts_sweeps_worth_of_updates_as_the_cpu_list_does() {
     let rounds = run.gpu_checks.rounds;
     assert!(run.converged && run.iterations <= 5, "{} ({} sweeps' worth)", run.stop_reason, run.iterations);
     assert!(rounds > 5 && rounds > run.iterations, "{rounds} rounds, {} sweeps' worth", run.iterations);
+    assert!(run.gpu_checks.counted);
     assert!(
         run.notes.iter().any(|n| n.contains("contact updates") && n.contains(&format!("in {rounds} rounds"))),
         "{:?}",
@@ -393,6 +394,7 @@ fn the_gpu_work_list_counts_sweeps_worth_of_updates_as_the_cpu_list_does() {
     let swept = SolverOptions { ordering: Ordering::Colours, ..listed(5) };
     let plain = moreau::gpu::solve(&ctx, &p, SolverKind::Nlgs, &swept, Some(&r0)).unwrap();
     assert_eq!(plain.gpu_checks.rounds, plain.iterations);
+    assert!(!plain.gpu_checks.counted);
     // A bound of one sweep's worth: the updates stop there, the rounds by 32 (with a batch).
     let short =
         moreau::gpu::solve(&ctx, &p, SolverKind::Nlgs, &SolverOptions { tol: 1e-9, ..listed(1) }, Some(&r0)).unwrap();

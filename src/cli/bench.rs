@@ -305,8 +305,7 @@ fn gpu_scene_rows(p: &ContactProblem, opts: &SolverOptions, a: &BenchArgs) -> Re
         let c = solved.gpu_checks;
         // The work list's thresholded sweeps count sweeps' worth of updates: time a round.
         let first = solved.parts.first().map_or((solved.iterations, solved.seconds), |g| (g.iterations, g.seconds));
-        let counted = crate::gpu::nlgs::thresholded(p, &opts);
-        let rounds = if counted { c.rounds } else { first.0 };
+        let rounds = if c.counted { c.rounds } else { first.0 };
         let per_sweep = (rounds > 0).then(|| first.1 / rounds as f64);
         let mut sweeps = match solved.parts.len() {
             0 => solved.iterations.to_string(),
@@ -322,7 +321,7 @@ fn gpu_scene_rows(p: &ContactProblem, opts: &SolverOptions, a: &BenchArgs) -> Re
                 .collect::<Vec<_>>()
                 .join(" + "),
         };
-        if counted {
+        if c.counted {
             sweeps = format!("{sweeps} sweeps' worth in {} rounds", c.rounds);
         }
         println!(

@@ -144,10 +144,7 @@ pub fn iterate(
     // check: a warm start that meets tol is not handed back unchanged (the pile at rest under the
     // natural map sank 11× deeper on an H200 than on the CPU when it was). It is queued before the
     // warm start is judged, which the GPU's sweeps then hide.
-    let first = match opts.max_iter {
-        0 => 0,
-        _ => batch_from(batch, 0, 0),
-    };
+    let first = batch_from(batch, 0, 0);
     if first > 0 {
         run_batch(first);
     }
@@ -299,7 +296,7 @@ pub fn iterate(
         (judged, error, u) = judge(&r);
     }
     let converged = judged <= opts.tol;
-    checks.rounds = iterations;
+    (checks.rounds, checks.counted) = (iterations, counting);
     let mut notes = vec![format!(
         "{} error estimates on the GPU, {} of them judged in f64 on the CPU ({:.1} ms); {} \
          iterations queued past the last check and not used",

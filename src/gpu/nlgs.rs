@@ -249,12 +249,6 @@ impl ColouredSweep {
     }
 }
 
-/// Whether the GPU sweeps `p` as the work list's thresholded colour sweeps, which count their
-/// updates (`ordering = "worklist"` on a matrix-free problem: the list needs each body's contacts).
-pub fn thresholded(p: &ContactProblem, opts: &SolverOptions) -> bool {
-    opts.ordering == Ordering::Worklist && matches!(p.w, Delassus::MatrixFree(_))
-}
-
 /// Graph-coloured NLGS on the GPU in f32 (the driver judges it in f64).
 pub fn solve(
     ctx: &GpuContext,
@@ -267,7 +261,8 @@ pub fn solve(
     let r = initial_impulses(p, r0);
     let r32 = to_f32_pairs(&r);
     let r_buf = storage(ctx, "r", &r32);
-    let worklist = thresholded(p, opts);
+    // As on the CPU, the list needs the contacts of each body: a matrix-free problem.
+    let worklist = opts.ordering == Ordering::Worklist && matches!(p.w, Delassus::MatrixFree(_));
     let threshold = if worklist {
         worklist::threshold(p, opts.tol, opts.criterion, worklist::F32_THRESHOLD_SHARE) as f32
     } else {

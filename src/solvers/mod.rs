@@ -476,6 +476,9 @@ pub struct GpuChecks {
     /// Iterations run up to that check: for the work list's thresholded sweeps, whose
     /// iterations count sweeps' worth of updates, their rounds of colour dispatches.
     pub rounds: usize,
+    /// Whether the iterations counted sweeps' worth of updates (the work list's thresholded
+    /// colour sweeps), so that `rounds` are not iterations.
+    pub counted: bool,
 }
 
 impl GpuChecks {
@@ -486,6 +489,7 @@ impl GpuChecks {
         self.judge_seconds += other.judge_seconds;
         self.discarded += other.discarded;
         self.rounds += other.rounds;
+        self.counted |= other.counted;
     }
 }
 
