@@ -1,6 +1,10 @@
 //! Clumps (rigid grains of overlapping disks): what their shape changes in the physics, their
 //! mass, their outputs, and the refusals that name a bad clump.
 
+#[path = "common/scratch.rs"]
+mod scratch;
+use scratch::Scratch;
+
 use std::f64::consts::PI;
 use std::path::Path;
 
@@ -150,8 +154,7 @@ fn a_deposition_of_trimers_settles() {
 #[test]
 fn a_clump_is_drawn_by_its_outline() {
     let (sim, _) = simulation(&disk_and_dimer_on_a_slope(20.0));
-    let dir = std::env::temp_dir().join(format!("moreau-clump-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("clump");
     moreau::io::vtk::write_step(&sim, &dir, 0).unwrap();
     let frame = moreau::io::picture::Frame::read(&dir, 0).unwrap();
     std::fs::remove_dir_all(&dir).unwrap();

@@ -2,6 +2,10 @@
 //! into a simulation, per-body accessors, impulses and forces, and typed errors that name the
 //! problem instead of panicking.
 
+#[path = "common/scratch.rs"]
+mod scratch;
+use scratch::Scratch;
+
 use std::path::Path;
 
 #[path = "common/said_scene.rs"]
@@ -50,7 +54,7 @@ fn a_scene_file_loads_into_the_simulation_the_command_line_steps() {
 /// `check()`'s, then the start's, and its notes.
 #[test]
 fn a_loaded_scene_keeps_its_files_warnings_and_notes_for_the_host() {
-    let dir = std::env::temp_dir().join(format!("moreau_embedding_said_{}", std::process::id()));
+    let dir = Scratch::new("embedding_said");
     let scene = said_scene::write_said_scene(&dir);
     let mut sim = Simulation::from_scene(&scene).unwrap();
     let notes = sim.notes().to_vec();

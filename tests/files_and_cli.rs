@@ -1,5 +1,9 @@
 //! Problem files: round trip, bad input with clear errors, and the `moreau solve` command.
 
+#[path = "common/scratch.rs"]
+mod scratch;
+use scratch::Scratch;
+
 use moreau::io::siconos::{format_fc2d, parse_fc2d_str, Storage};
 use moreau::problem::generate::{lattice_packing, random_small};
 use std::process::Command;
@@ -63,8 +67,7 @@ fn bad_files_are_rejected_with_a_reason() {
 
 #[test]
 fn solve_command_writes_the_report_and_fails_cleanly_on_bad_input() {
-    let dir = std::env::temp_dir().join(format!("moreau-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("cli");
     let file = dir.join("lattice.dat");
     let out = moreau().args(["generate", "lattice", "--nx", "6", "--ny", "5", "--out"]).arg(&file).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -133,8 +136,7 @@ fn solve_command_writes_the_report_and_fails_cleanly_on_bad_input() {
 /// `scenes/deposit_2k.toml`'s, to the byte (the problem `--dump-problem 1` writes).
 #[test]
 fn generate_deposit_is_the_shipped_deposit_scenes_first_step() {
-    let dir = std::env::temp_dir().join(format!("moreau-deposit-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("deposit");
     let generated = dir.join("deposit.dat");
     let o = moreau()
         .args(["generate", "deposit", "--n", "2000", "--mu", "0.3", "--seed", "7", "--out"])
@@ -174,8 +176,7 @@ fn generate_deposit_is_the_shipped_deposit_scenes_first_step() {
 /// Inputs that used to panic or abort now fail with a message naming the problem and exit 2.
 #[test]
 fn former_panics_and_aborts_are_clear_errors() {
-    let tmp = std::env::temp_dir().join(format!("moreau-hostile-{}", std::process::id()));
-    std::fs::create_dir_all(&tmp).unwrap();
+    let tmp = Scratch::new("hostile");
     let runs: [(&[&str], &str); 3] = [
         (&["generate", "lattice", "--nx", "100000", "--ny", "100000", "--out", "x.dat"], "at most"),
         (&["bench", "--sizes", "1000000000000"], "--sizes 1000000000000"),
@@ -217,8 +218,7 @@ polygon = { center = [0.0, 0.0], vertices = [[0.0, 0.0], [1e-30, 0.0], [0.0, 1e-
 /// `--strict` turns a missed tolerance into a non-zero exit, after the outputs are written.
 #[test]
 fn strict_makes_a_missed_tolerance_an_error() {
-    let dir = std::env::temp_dir().join(format!("moreau-strict-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("strict");
     let file = dir.join("p.dat");
     std::fs::write(&file, format_fc2d(&lattice_packing(10, 5, 0.5, 3), Storage::Sparse)).unwrap();
     let out_json = dir.join("r.json");
@@ -242,7 +242,7 @@ fn strict_makes_a_missed_tolerance_an_error() {
 
 #[test]
 fn the_colour_ordering_runs_from_the_command_line_and_an_unknown_one_is_named() {
-    let dir = std::env::temp_dir().join(format!("moreau-colours-{}", std::process::id()));
+    let dir = Scratch::new("colours");
     let run = |ordering: &str| {
         moreau()
             .args(["run", "scenes/pile.toml", "--steps", "60", "--device", "cpu", "--vtk-every", "0", "--quiet"])
@@ -268,8 +268,7 @@ fn the_colour_ordering_runs_from_the_command_line_and_an_unknown_one_is_named() 
 
 #[test]
 fn sweep_options_out_of_range_are_refused_from_the_command_line_and_the_scene() {
-    let dir = std::env::temp_dir().join(format!("moreau-focus-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("focus");
     let scene = dir.join("focused.toml");
     // Focused sweeps (at most 100 after a full sweep) and the GPU's block sweeps (at most 64 a
     // dispatch): out of range from the command line and from the scene, in range they run.
@@ -315,8 +314,7 @@ fn opposed_pair_file(dir: &std::path::Path, name: &str, q_n2: f64, scale: f64) -
 /// answer is a warning, and an error under --strict.
 #[test]
 fn solve_reports_the_worst_contact_in_velocity_units_and_refuses_an_unbounded_answer() {
-    let dir = std::env::temp_dir().join(format!("moreau-cli-velocity-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("cli_velocity");
     let heavy = opposed_pair_file(&dir, "heavy.dat", 1.5, 1e-6);
     let json = dir.join("heavy.json");
     let solve = |file: &std::path::Path, extra: &[&str]| {

@@ -4,25 +4,26 @@
 //! outputs never land outside their directory nor sit beside stale files; nothing is silently
 //! accepted.
 
+#[path = "common/scratch.rs"]
+mod scratch;
+use scratch::Scratch;
+
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn moreau() -> Command {
     Command::new(env!("CARGO_BIN_EXE_moreau"))
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("moreau_hostile_{}_{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> Scratch {
+    Scratch::new(&format!("hostile_{name}"))
 }
 
 /// Runs `moreau run` on `scene` (written to a scratch directory) with `args`; the output
 /// directory is `<scratch>/out`.
-fn run_scene(name: &str, scene: &str, args: &[&str]) -> (Output, PathBuf) {
+fn run_scene(name: &str, scene: &str, args: &[&str]) -> (Output, Scratch) {
     let dir = scratch(name);
     let path = dir.join(format!("{name}.toml"));
     std::fs::write(&path, scene).unwrap();
@@ -35,7 +36,7 @@ fn run_scene(name: &str, scene: &str, args: &[&str]) -> (Output, PathBuf) {
         .args(args)
         .output()
         .unwrap();
-    (output, out)
+    (output, dir)
 }
 
 fn stderr(o: &Output) -> String {
@@ -81,7 +82,8 @@ fn scenes_that_cannot_be_integrated_are_refused_up_front() {
 fn a_run_that_blows_up_stops_at_the_step_and_keeps_its_outputs() {
     // Without walls a fast fall is allowed to start; with g = 1e4 m/s² the grain outruns 1e3
     // scene extents per step after about 2,000 steps.
-    let (o, out) = run_scene("runaway", &disk_scene("1e-3", "0.01", "0.0", "-1e4", false), &[]);
+    let (o, dir) = run_scene("runaway", &disk_scene("1e-3", "0.01", "0.0", "-1e4", false), &[]);
+    let out = dir.join("out");
     refused(&o, &["body 0 ran away", "step ", "is kept"]);
     let e = stderr(&o);
     assert!(!e.contains("squeezed"), "nothing here moves by prescription: {e}");
@@ -174,7 +176,8 @@ fn outputs_stay_in_their_directory_and_hold_no_stale_files() {
         let (o, _) = run_scene("bad_name", &format!("name = {name:?}\n{SMALL}"), &[]);
         refused(&o, &["name", "not a plain file name"]);
     }
-    let (o, out) = run_scene("stale", &format!("[output]\nvtk = true\nevery = 1\n{SMALL}"), &[]);
+    let (o, dir) = run_scene("stale", &format!("[output]\nvtk = true\nevery = 1\n{SMALL}"), &[]);
+    let out = dir.join("out");
     assert!(o.status.success(), "{}", stderr(&o));
     for stale in ["grains_000999.vtu", "state_000999.png", "problem_000999.dat"] {
         std::fs::write(out.join(stale), "old").unwrap();
@@ -191,7 +194,8 @@ fn outputs_stay_in_their_directory_and_hold_no_stale_files() {
 
 #[test]
 fn the_time_step_is_set_from_the_command_line_and_refused_when_it_cannot_be() {
-    let (o, out) = run_scene("time_step", SMALL, &["--time-step", "5e-4"]);
+    let (o, dir) = run_scene("time_step", SMALL, &["--time-step", "5e-4"]);
+    let out = dir.join("out");
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("h = 5e-4"), "{}", stderr(&o));
     let csv = std::fs::read_to_string(out.join("steps.csv")).unwrap();
@@ -312,7 +316,8 @@ fn a_run_warns_when_a_fast_grain_loosens_the_velocity_tests_bound() {
     let (resting, _) = run_scene("velocity_scale_resting", &scene(false), &[]);
     assert!(resting.status.success(), "{}", stderr(&resting));
     assert!(!stderr(&resting).contains("a step of gravity"), "{}", stderr(&resting));
-    let (sliding, out) = run_scene("velocity_scale_sliding", &scene(true), &[]);
+    let (sliding, dir) = run_scene("velocity_scale_sliding", &scene(true), &[]);
+    let out = dir.join("out");
     let e = stderr(&sliding);
     assert!(sliding.status.success(), "{e}");
     // 3 m/s and two steps of gravity: about 300 steps of gravity.

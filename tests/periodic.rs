@@ -1,6 +1,10 @@
 //! Periodic boundaries along x (`[periodic] x = [x0, x1]`): what leaves at x1 comes back at x0,
 //! grains touch through the boundary, and a pile needs no side walls.
 
+#[path = "common/scratch.rs"]
+mod scratch;
+use scratch::Scratch;
+
 use std::path::Path;
 
 use moreau::detection::Antagonist;
@@ -131,8 +135,7 @@ fn a_run_writes_the_height_profile_of_its_grains() {
     // Two rows of five disks sliding at 1 and 2 m/s, untouched (no gravity, 1 mm apart).
     let rows: Vec<(f64, f64, f64)> =
         (0..10).map(|k| (0.01 + 0.02 * (k % 5) as f64, 0.01 + 0.021 * (k / 5) as f64, 1.0 + (k / 5) as f64)).collect();
-    let dir = std::env::temp_dir().join(format!("moreau_profile_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("profile");
     let scene = dir.join("rows.toml");
     std::fs::write(&scene, disks(&rows, CELL) + "[output]\nevery = 2\nprofile = true\n").unwrap();
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_moreau"))

@@ -2,6 +2,10 @@
 //! bit, for one thread, two threads (coloured Gauss–Seidel, whose colouring memory the
 //! checkpoint carries) and the GPU; a checkpoint is refused for another scene or when tampered.
 
+#[path = "common/scratch.rs"]
+mod scratch;
+use scratch::Scratch;
+
 mod common;
 
 use std::path::{Path, PathBuf};
@@ -14,11 +18,8 @@ fn moreau() -> Command {
     Command::new(env!("CARGO_BIN_EXE_moreau"))
 }
 
-fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("moreau_restart_{}_{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn temp(name: &str) -> Scratch {
+    Scratch::new(&format!("restart_{name}"))
 }
 
 /// `scenes/pile.toml` with a checkpoint every `every` steps, written into `dir`.

@@ -2,6 +2,10 @@
 //! threads that give the same results run after run, grains from CSV files, one backend for
 //! every solver × criterion × device.
 
+#[path = "common/scratch.rs"]
+mod scratch;
+use scratch::Scratch;
+
 mod common;
 
 use std::path::Path;
@@ -453,8 +457,7 @@ fn one_and_two_threads_each_give_the_same_steps_on_every_run() {
 
 #[test]
 fn grains_come_from_a_csv_file_and_bad_files_name_line_and_column() {
-    let dir = std::env::temp_dir().join(format!("moreau_grains_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("grains");
     let scene = |csv: &str| {
         std::fs::write(dir.join("packing.csv"), csv).unwrap();
         let toml = r#"
@@ -493,8 +496,7 @@ file = "packing.csv"
 /// whose grains already lie together keeps its order: `saved_grains_start_a_scene_where_the_run_left_them`.)
 #[test]
 fn a_shuffled_packing_from_a_file_is_numbered_in_rows_unless_asked_not_to() {
-    let dir = std::env::temp_dir().join(format!("moreau_shuffled_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("shuffled");
     // 100 × 30 disks of radius 0.05 touching on a square lattice, shuffled.
     let in_rows: Vec<String> = (0..30)
         .flat_map(|i| {
@@ -626,8 +628,7 @@ fn newton_and_nlgs_newton_reach_tight_tolerances_on_small_problems() {
 /// corrections (the Tresca energy is then the problem's own).
 #[test]
 fn nlgs_newton_solves_a_frictionless_deposit_in_a_few_iterations() {
-    let dir = std::env::temp_dir().join(format!("moreau_deposit_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("deposit");
     let scene = dir.join("deposit.toml");
     std::fs::write(
         &scene,

@@ -1,6 +1,10 @@
 //! Scene files: every shipped scene builds and steps; bad scenes get errors that name the line
 //! and the field; effects that are off cost nothing; `moreau run` writes its outputs.
 
+#[path = "common/scratch.rs"]
+mod scratch;
+use scratch::Scratch;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -215,8 +219,7 @@ disk = {{ center = [0.0, 0.0], radius = 0.1 }}
 
 #[test]
 fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
-    let out = std::env::temp_dir().join(format!("moreau-run-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
+    let out = Scratch::new("run");
     let status = Command::new(env!("CARGO_BIN_EXE_moreau"))
         .args([
             "run",
@@ -320,7 +323,8 @@ fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
         .unwrap();
     assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("steps.csv"));
     // A missing file and a folder are worded as such, not as XML errors.
-    for (path, says) in [(out.join("contacts_999999.vtu"), "No such file"), (out.clone(), "a folder, not a .vtu file")]
+    for (path, says) in
+        [(out.join("contacts_999999.vtu"), "No such file"), (out.to_path_buf(), "a folder, not a .vtu file")]
     {
         let o = Command::new(env!("CARGO_BIN_EXE_moreau")).arg("stats").arg(&path).output().unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
@@ -393,7 +397,7 @@ fn run_writes_steps_summary_vtk_picture_and_dumped_problems() {
 /// adapter is sought.
 #[test]
 fn a_criterion_the_gpu_lacks_keeps_the_run_on_the_cpu() {
-    let out = std::env::temp_dir().join(format!("moreau-criterion-{}", std::process::id()));
+    let out = Scratch::new("criterion");
     let run = |device: &str, criterion: &str| {
         Command::new(env!("CARGO_BIN_EXE_moreau"))
             .args(["run", scenes_dir().join("pile.toml").to_str().unwrap(), "--steps", "1", "--quiet"])
@@ -436,9 +440,7 @@ fn contact_cells(path: &std::path::Path) -> std::collections::HashMap<String, Ve
 
 #[test]
 fn walls_csv_holds_each_walls_position_and_load_when_asked_for() {
-    let dir = std::env::temp_dir().join(format!("moreau-walls-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("walls");
     let scene = dir.join("pile.toml");
     let text = std::fs::read_to_string("scenes/pile.toml").unwrap();
     std::fs::write(&scene, text.replace("[output]\n", "[output]\nwall_forces = true\n")).unwrap();

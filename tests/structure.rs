@@ -2,6 +2,10 @@
 //! condensed on its contact dofs to the LCP `w = M z + q`, and solved by NLGS, CPG, LATIN and the
 //! dual projected CG. Tolerances are stated per test.
 
+#[path = "common/scratch.rs"]
+mod scratch;
+use scratch::{Scratch, ScratchFile};
+
 use std::path::Path;
 use std::process::Command;
 
@@ -218,14 +222,12 @@ fn parse_err(text: &str) -> String {
     }
 }
 
-fn write_temp(text: &str) -> std::path::PathBuf {
+fn write_temp(text: &str) -> ScratchFile {
     use std::sync::atomic::{AtomicUsize, Ordering};
     static N: AtomicUsize = AtomicUsize::new(0);
-    let dir = std::env::temp_dir().join(format!("moreau-structure-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(format!("punch{}.toml", N.fetch_add(1, Ordering::Relaxed)));
-    std::fs::write(&path, text).unwrap();
-    path
+    let file = ScratchFile::new(&format!("structure_{}", N.fetch_add(1, Ordering::Relaxed)), "punch.toml");
+    std::fs::write(&*file, text).unwrap();
+    file
 }
 
 const GOOD: &str = "name = \"p\"\n[punch]\nhalf_width = 0.5\nheight = 1.0\nradius = 2.0\ncells = [10, 6]\nyoung = 1e7\npoisson = 0.3\ndisplacement = 1e-3\n";
@@ -270,8 +272,7 @@ fn bad_punch_scenes_are_named_errors() {
 /// `moreau run` and `moreau sweep` on the shipped scene write what they promise.
 #[test]
 fn run_and_sweep_write_their_outputs() {
-    let out = std::env::temp_dir().join(format!("moreau-punch-out-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
+    let out = Scratch::new("punch_out");
     let exe = env!("CARGO_BIN_EXE_moreau");
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/signorini_punch.toml");
     let status = Command::new(exe).arg("run").arg(&scene).arg("--out").arg(out.join("run")).status().unwrap();

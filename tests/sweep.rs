@@ -1,5 +1,9 @@
 //! `moreau sweep` and `moreau friction-study`: their files, columns and consistency.
 
+#[path = "common/scratch.rs"]
+mod scratch;
+use scratch::Scratch;
+
 use std::process::Command;
 
 use moreau::io::plots::font_available;
@@ -8,16 +12,13 @@ fn moreau() -> Command {
     Command::new(env!("CARGO_BIN_EXE_moreau"))
 }
 
-fn temp(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("moreau-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+fn temp(name: &str) -> Scratch {
+    Scratch::new(name)
 }
 
 #[test]
 fn sweep_writes_work_precision_data_profiles_and_a_table() {
     let dir = temp("sweep");
-    std::fs::create_dir_all(&dir).unwrap();
     // A directory of two generated problems.
     for (name, args) in [
         ("lattice.dat", vec!["lattice", "--nx", "20", "--ny", "8"]),
@@ -91,7 +92,6 @@ fn sweep_writes_work_precision_data_profiles_and_a_table() {
 #[test]
 fn friction_study_writes_iterations_against_mu() {
     let dir = temp("friction");
-    std::fs::create_dir_all(&dir).unwrap();
     let scene = dir.join("box.toml");
     std::fs::write(
         &scene,

@@ -8,6 +8,9 @@ use std::process::{Command, Output};
 
 #[path = "../../tests/common/said_scene.rs"]
 mod said_scene;
+#[path = "../../tests/common/scratch.rs"]
+mod scratch;
+use scratch::{Scratch, ScratchFile};
 
 use moreau::io::siconos::read_fc2d;
 use moreau::solvers::{Ordering, StopCriterion};
@@ -126,10 +129,10 @@ fn the_abi_version_rises_when_a_type_of_the_header_changes() {
 /// Compiles `examples/c/<name>.c` against the header and the library; returns the program, one
 /// file per call: tests run in parallel, and a program rewritten while another test runs it
 /// fails to start.
-fn compile(name: &str) -> PathBuf {
+fn compile(name: &str) -> ScratchFile {
     static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let out = std::env::temp_dir().join(format!("moreau_c_{name}_{}_{call}", std::process::id()));
+    let out = ScratchFile::new(&format!("c_{name}_{call}"), name);
     let lib = library_dir();
     let status = Command::new("cc")
         .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-O1", "-I"])
@@ -164,8 +167,7 @@ fn field(text: &str, key: &str) -> f64 {
 
 #[test]
 fn the_header_compiles_as_cpp() {
-    let dir = std::env::temp_dir().join(format!("moreau_cpp_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("cpp");
     let source = dir.join("main.cpp");
     std::fs::write(&source, "#include \"moreau.h\"\nint main() { return moreau_version()[0] == '\\0'; }\n").unwrap();
     let status = Command::new("c++")
@@ -276,7 +278,7 @@ fn a_c_program_steps_a_pile_as_the_library_does() {
 fn a_c_program_restarts_a_scene_from_its_checkpoint_as_the_library_steps_it() {
     let program = compile("restart_scene");
     let scene = repo().join("scenes/pile.toml");
-    let checkpoint = std::env::temp_dir().join(format!("moreau_c_restart_{}.json", std::process::id()));
+    let checkpoint = ScratchFile::new("c_restart", "checkpoint.json");
     let (code, out, err) = run(&program, &[scene.to_str().unwrap(), "30", checkpoint.to_str().unwrap(), "glass"]);
     assert_eq!(code, Some(0), "{out}{err}");
     assert!(out.contains("restart identical"), "{out}");
@@ -298,14 +300,13 @@ fn a_c_program_restarts_a_scene_from_its_checkpoint_as_the_library_steps_it() {
     // The command line goes on from the C program's checkpoint too.
     let c = moreau::io::checkpoint::read_checkpoint(&checkpoint, &scene).unwrap();
     assert_eq!(c.steps_done, 30);
-    std::fs::remove_file(&checkpoint).ok();
 }
 
 /// A scene with notes and warnings (grains in no spatial order, with spins but no rotation, one in
 /// the floor): the C program prints the library's, as `moreau run` does, before its steps.
 #[test]
 fn a_c_program_prints_a_scenes_notes_and_warnings_as_the_library_gives_them() {
-    let dir = std::env::temp_dir().join(format!("moreau_c_said_{}", std::process::id()));
+    let dir = Scratch::new("c_said");
     let scene = said_scene::write_said_scene(&dir);
     let (code, out, err) = run(&compile("step_scene"), &[scene.to_str().unwrap(), "1", "1"]);
     assert_eq!(code, Some(0), "{out}{err}");
@@ -410,7 +411,7 @@ fn write_build_world_scene(dir: &Path) -> (PathBuf, PathBuf) {
 
 #[test]
 fn a_world_built_in_c_steps_to_the_bits_of_the_scene_file_describing_it() {
-    let dir = std::env::temp_dir().join(format!("moreau_c_world_{}", std::process::id()));
+    let dir = Scratch::new("c_world");
     let (scene, grains) = write_build_world_scene(&dir);
     let (code, out, err) = run(&compile("build_world"), &["200", grains.to_str().unwrap()]);
     assert_eq!(code, Some(0), "{out}{err}");
@@ -508,9 +509,9 @@ fn bad_input_through_c_gets_the_command_lines_message_and_a_non_zero_exit() {
         assert_eq!(code, Some(1), "{args:?}: {out}{err}");
         assert!(err.contains(message), "{args:?}: {err:?} should say {message:?}");
     }
-    let bad_scene = std::env::temp_dir().join(format!("moreau_c_bad_{}.toml", std::process::id()));
+    let bad_scene = ScratchFile::new("c_bad", "bad.toml");
     let pile = std::fs::read_to_string(repo().join("scenes/pile.toml")).unwrap();
-    std::fs::write(&bad_scene, pile.replace("density = 2500.0", "density = -2500.0")).unwrap();
+    std::fs::write(&*bad_scene, pile.replace("density = 2500.0", "density = -2500.0")).unwrap();
     let (code, _, err) = run(&compile("step_scene"), &[bad_scene.to_str().unwrap(), "1"]);
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("density") && err.contains("-2500"), "{err}");
