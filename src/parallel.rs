@@ -139,24 +139,67 @@ pub fn first_failure<E: Send>(n: usize, check: impl Fn(usize) -> Result<(), E> +
     failed.map_or(Ok(()), check)
 }
 
-/// The parts one after another in one vector, copied on threads when long: the per-chunk
-/// outputs of a threaded loop joined without one thread copying them all (7 MB of contacts a
-/// step on the 40,000-disk pile).
-pub fn concat<T: Copy + Send + Sync>(parts: &[Vec<T>]) -> Vec<T> {
-    let total = parts.iter().map(Vec::len).sum();
-    if !parallel(total) {
-        return parts.concat();
-    }
-    let mut out: Vec<T> = Vec::with_capacity(total);
-    let slots = split_lengths(&mut out.spare_capacity_mut()[..total], parts.iter().map(Vec::len));
-    slots.into_par_iter().zip(parts).for_each(|(slot, part)| {
-        slot.iter_mut().zip(part).for_each(|(s, x)| {
-            s.write(*x);
+/// The outputs of `chunks` tasks on threads, one after another in one vector, written in place
+/// where the tasks make as many items as last time. `fill(c, emit)` makes chunk `c`'s items in
+/// order, handing them to `emit`; each chunk writes at the offset that `counts` (each chunk's
+/// count in the last call, updated here) gives it, and past its slot into its own buffer of
+/// `spill`. When every chunk's count is the one predicted (a pile at rest: its contacts, step
+/// after step) the slots are the output and nothing is copied; otherwise the parts are copied into
+/// one on threads. The same items in the same order either way.
+pub fn fill_in_place<T: Copy + Send + Sync>(
+    chunks: usize,
+    counts: &mut Vec<usize>,
+    spill: &mut Vec<Vec<T>>,
+    fill: impl Fn(usize, &mut dyn FnMut(&[T])) + Sync,
+) -> Vec<T> {
+    counts.resize(chunks, 0);
+    spill.resize_with(chunks, Vec::new);
+    let predicted: usize = counts.iter().sum();
+    let mut out: Vec<T> = Vec::with_capacity(predicted);
+    let slots = split_lengths(&mut out.spare_capacity_mut()[..predicted], counts.iter().copied());
+    let made: Vec<usize> = slots
+        .into_par_iter()
+        .zip(spill.par_iter_mut())
+        .enumerate()
+        .map(|(c, (slot, spilled))| {
+            spilled.clear();
+            let mut n = 0;
+            fill(c, &mut |items: &[T]| {
+                for &x in items {
+                    match slot.get_mut(n) {
+                        Some(s) => {
+                            s.write(x);
+                        }
+                        None => spilled.push(x),
+                    }
+                    n += 1;
+                }
+            });
+            n
         })
+        .collect();
+    if made == *counts {
+        // SAFETY: every chunk filled its whole slot, and the slots cover the first `predicted`.
+        unsafe { out.set_len(predicted) };
+        return out;
+    }
+    // Chunk c's items: the first min(made, predicted) of its slot, then what it spilled.
+    let written = split_lengths(&mut out.spare_capacity_mut()[..predicted], counts.iter().copied());
+    let total = made.iter().sum();
+    let mut joined: Vec<T> = Vec::with_capacity(total);
+    let targets = split_lengths(&mut joined.spare_capacity_mut()[..total], made.iter().copied());
+    targets.into_par_iter().zip(written).zip(spill.par_iter()).for_each(|((target, slot), spilled)| {
+        let kept = slot.len().min(target.len());
+        // SAFETY: the chunk wrote the first `kept` items of its slot.
+        let from_slot = slot[..kept].iter().map(|x| unsafe { x.assume_init_read() });
+        target.iter_mut().zip(from_slot.chain(spilled.iter().copied())).for_each(|(t, x)| {
+            t.write(x);
+        });
     });
-    // SAFETY: the slots cover the first `total` elements, and each was written above.
-    unsafe { out.set_len(total) };
-    out
+    // SAFETY: each chunk's target holds its `made` items, and the targets cover the first `total`.
+    unsafe { joined.set_len(total) };
+    *counts = made;
+    joined
 }
 
 /// `slice` cut into consecutive parts of `lengths` (summing to at most its length), for threads
@@ -471,17 +514,31 @@ mod tests {
         assert!(with_threads(MAX_THREADS + 1, || ()).is_err());
     }
 
-    /// Parts of uneven lengths (some empty), long enough for the threaded copy, come out one
-    /// after another in order on one thread and on four.
+    /// Chunks written in place give the chunks' items in order whether each chunk makes as many
+    /// as last time (no copy), more (its spill) or fewer (a hole closed), on any thread count.
     #[test]
-    fn concat_joins_the_parts_in_order_on_any_thread_count() {
-        let parts: Vec<Vec<u64>> = (0..40u64).map(|p| (0..(p * 37 % 11) * 61).map(|k| p << 32 | k).collect()).collect();
-        let expected: Vec<u64> = parts.iter().flatten().copied().collect();
-        assert!(parallel_on(4, || parallel(expected.len())), "{} items: the threaded path", expected.len());
+    fn fill_in_place_gives_the_chunks_items_in_order_whatever_their_counts_did() {
+        let item = |c: usize, k: usize| (c as u64) << 32 | k as u64;
+        let round = |sizes: &[usize], counts: &mut Vec<usize>, spill: &mut Vec<Vec<u64>>| {
+            fill_in_place(sizes.len(), counts, spill, |c, emit| {
+                // In pieces of up to 3, as a narrow phase hands over each body's contacts.
+                let items: Vec<u64> = (0..sizes[c]).map(|k| item(c, k)).collect();
+                items.chunks(3).for_each(&mut *emit);
+            })
+        };
+        let first: Vec<usize> = (0..40).map(|c| (c * 37 % 11) * 61).collect();
+        let more: Vec<usize> = first.iter().enumerate().map(|(c, &n)| if c % 7 == 3 { n + 5 } else { n }).collect();
+        let fewer: Vec<usize> = first.iter().enumerate().map(|(c, &n)| if c % 5 == 1 { n / 2 } else { n }).collect();
         for threads in [1, 4] {
-            assert_eq!(parallel_on(threads, || concat(&parts)), expected, "{threads} thread(s)");
+            let (mut counts, mut spill) = (Vec::new(), Vec::new());
+            for sizes in [&first, &first, &more, &fewer, &fewer, &first] {
+                let expected: Vec<u64> =
+                    sizes.iter().enumerate().flat_map(|(c, &n)| (0..n).map(move |k| item(c, k))).collect();
+                let got = parallel_on(threads, || round(sizes, &mut counts, &mut spill));
+                assert_eq!(got, expected, "{threads} thread(s)");
+                assert_eq!(&counts, sizes, "the counts kept for the next call");
+            }
         }
-        assert!(concat::<u64>(&[]).is_empty() && concat(&[vec![], vec![7u64]]) == [7]);
     }
 
     /// The largest term, NaN terms left out, the same on one thread and on four, wherever it lies

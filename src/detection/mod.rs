@@ -7,11 +7,13 @@ pub mod narrow_phase;
 pub mod outline;
 
 use glam::DVec2;
-use rayon::prelude::*;
 
-use crate::parallel::{concat, parallel, CHUNK};
+use crate::parallel::{fill_in_place, parallel, CHUNK};
 
 use crate::world::{Bodies, Materials, Periodic, Wall};
+
+/// Takes one body's contacts from the threaded narrow phase.
+type HandOver<'a> = dyn FnMut(&[DetectedContact]) + 'a;
 
 /// What body `i` touches.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -107,8 +109,10 @@ pub struct Detector {
     position: Vec<DVec2>,
     images: Vec<(u32, f64)>,
     periodic_pairs: Vec<(u32, u32, f64)>,
-    /// The threaded narrow phase's contacts, a buffer per chunk of bodies.
-    parts: Vec<Vec<DetectedContact>>,
+    /// The threaded narrow phase: each chunk of bodies' contact count in the last detection,
+    /// where its contacts are written in this one, and a buffer per chunk for those beyond it.
+    chunk_counts: Vec<usize>,
+    spill: Vec<Vec<DetectedContact>>,
 }
 
 /// The configuration the kept candidate pairs were sought in: a pair closer than `alert` now was
@@ -188,46 +192,49 @@ impl Detector {
             .collect();
         // Bodies first..last with their pairs (the grid's pairs come sorted by (i, j)) and walls,
         // each body's contacts sorted by key: the bodies' runs in order are the contacts in key
-        // order, with no sort of the whole list.
+        // order, with no sort of the whole list. They stay in `out`, or are handed over one
+        // body at a time and `out` cleared.
         let pairs = &self.pairs;
-        let contacts_of = |first: usize, last: usize, out: &mut Vec<DetectedContact>| {
-            let mut p = pairs.partition_point(|&(i, _)| (i as usize) < first);
-            for k in first..last {
-                let start = out.len();
-                while let Some(&(_, j)) = pairs.get(p).filter(|&&(i, _)| i as usize == k) {
-                    let j = j as usize;
-                    narrow_phase::body_body(
-                        bodies,
-                        config,
-                        (k, j, DVec2::ZERO),
-                        alert + reach_of(k) + reach_of(j),
-                        out,
-                    );
-                    p += 1;
-                }
-                let x = config.position[k];
-                for (w, (wall, &(lo, hi, wr))) in walls.iter().zip(&wall_bounds).enumerate() {
-                    if x.x >= lo.x && x.y >= lo.y && x.x <= hi.x && x.y <= hi.y && bodies.inv_mass[k] > 0.0 {
-                        narrow_phase::body_wall(bodies, config, k, w, wall, alert + wr + reach_of(k), out);
+        let contacts_of =
+            |first: usize, last: usize, out: &mut Vec<DetectedContact>, mut hand_over: Option<&mut HandOver>| {
+                let mut p = pairs.partition_point(|&(i, _)| (i as usize) < first);
+                for k in first..last {
+                    let start = out.len();
+                    while let Some(&(_, j)) = pairs.get(p).filter(|&&(i, _)| i as usize == k) {
+                        let j = j as usize;
+                        narrow_phase::body_body(
+                            bodies,
+                            config,
+                            (k, j, DVec2::ZERO),
+                            alert + reach_of(k) + reach_of(j),
+                            out,
+                        );
+                        p += 1;
+                    }
+                    let x = config.position[k];
+                    for (w, (wall, &(lo, hi, wr))) in walls.iter().zip(&wall_bounds).enumerate() {
+                        if x.x >= lo.x && x.y >= lo.y && x.x <= hi.x && x.y <= hi.y && bodies.inv_mass[k] > 0.0 {
+                            narrow_phase::body_wall(bodies, config, k, w, wall, alert + wr + reach_of(k), out);
+                        }
+                    }
+                    if out.len() > start + 1 {
+                        out[start..].sort_by_key(DetectedContact::key);
+                    }
+                    if let Some(emit) = hand_over.as_mut().filter(|_| !out.is_empty()) {
+                        emit(out);
+                        out.clear();
                     }
                 }
-                if out.len() > start + 1 {
-                    out[start..].sort_by_key(DetectedContact::key);
-                }
-            }
-        };
+            };
         let n = bodies.len();
         let mut out = if parallel(self.pairs.len().max(n)) {
-            // Each chunk's contacts in a buffer kept from step to step, then joined on threads.
-            self.parts.resize_with(n.div_ceil(CHUNK), Vec::new);
-            self.parts.par_iter_mut().enumerate().for_each(|(c, part)| {
-                part.clear();
-                contacts_of(c * CHUNK, ((c + 1) * CHUNK).min(n), part);
-            });
-            concat(&self.parts)
+            // Each chunk's contacts written where last step's counts put them: at rest no copy.
+            fill_in_place(n.div_ceil(CHUNK), &mut self.chunk_counts, &mut self.spill, |c, emit| {
+                contacts_of(c * CHUNK, ((c + 1) * CHUNK).min(n), &mut Vec::new(), Some(emit))
+            })
         } else {
             let mut out = Vec::with_capacity(self.pairs.len() + n / 4);
-            contacts_of(0, n, &mut out);
+            contacts_of(0, n, &mut out, None);
             out
         };
         if !self.periodic_pairs.is_empty() {
@@ -374,30 +381,37 @@ mod tests {
             Wall::segment(DVec2::new(0.0, 60.0), DVec2::new(0.0, 0.0), 0),
             Wall::segment(DVec2::new(60.0, 0.0), DVec2::new(60.0, 60.0), 0),
         ];
-        let (alert, reach) = (0.05, vec![0.0; n]);
+        let reach = vec![0.0; n];
         let config =
             Configuration { position: &bodies.position, angle: &bodies.angle, periodic: None, pass_through: None };
-        let mut expected = Vec::new();
-        for i in 0..n {
-            for j in i + 1..n {
-                narrow_phase::body_body(&bodies, &config, (i, j, DVec2::ZERO), alert, &mut expected);
+        let brute_force = |alert: f64| {
+            let mut expected = Vec::new();
+            for i in 0..n {
+                for j in i + 1..n {
+                    narrow_phase::body_body(&bodies, &config, (i, j, DVec2::ZERO), alert, &mut expected);
+                }
             }
-        }
-        for (w, wall) in walls.iter().enumerate() {
-            for k in 0..n {
-                narrow_phase::body_wall(&bodies, &config, k, w, wall, alert, &mut expected);
+            for (w, wall) in walls.iter().enumerate() {
+                for k in 0..n {
+                    narrow_phase::body_wall(&bodies, &config, k, w, wall, alert, &mut expected);
+                }
             }
-        }
-        expected.sort_by_key(|a| a.key());
-        assert!(expected.iter().any(|c| matches!(c.other, Antagonist::Wall(_))));
-        assert!(expected.len() > crate::parallel::PARALLEL_MIN, "{} contacts", expected.len());
+            expected.sort_by_key(|a| a.key());
+            expected
+        };
+        let (near, far) = (brute_force(0.05), brute_force(0.2));
+        assert!(near.iter().any(|c| matches!(c.other, Antagonist::Wall(_))));
+        assert!(near.len() > crate::parallel::PARALLEL_MIN, "{} contacts", near.len());
+        assert!(far.len() > near.len());
+        // One detector throughout: its first detection (no counts kept), the same again (each
+        // chunk's contacts written in place), a wider alert (more contacts) and back (fewer).
         for threads in [1, 2] {
-            let found = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| Detector::default().detect(&bodies, &config, &walls, alert, &reach, &[0.0; 3]));
-            assert_eq!(found, expected, "{threads} thread(s)");
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let mut detector = Detector::default();
+            for (alert, expected) in [(0.05, &near), (0.05, &near), (0.2, &far), (0.05, &near)] {
+                let found = pool.install(|| detector.detect(&bodies, &config, &walls, alert, &reach, &[0.0; 3]));
+                assert_eq!(&found, expected, "{threads} thread(s), alert {alert}");
+            }
         }
     }
 }
