@@ -139,67 +139,78 @@ pub fn first_failure<E: Send>(n: usize, check: impl Fn(usize) -> Result<(), E> +
     failed.map_or(Ok(()), check)
 }
 
-/// The outputs of `chunks` tasks on threads, one after another in one vector, written in place
-/// where the tasks make as many items as last time. `fill(c, emit)` makes chunk `c`'s items in
-/// order, handing them to `emit`; each chunk writes at the offset that `counts` (each chunk's
-/// count in the last call, updated here) gives it, and past its slot into its own buffer of
-/// `spill`. When every chunk's count is the one predicted (a pile at rest: its contacts, step
-/// after step) the slots are the output and nothing is copied; otherwise the parts are copied into
-/// one on threads. The same items in the same order either way.
-pub fn fill_in_place<T: Copy + Send + Sync>(
-    chunks: usize,
-    counts: &mut Vec<usize>,
-    spill: &mut Vec<Vec<T>>,
-    fill: impl Fn(usize, &mut dyn FnMut(&[T])) + Sync,
-) -> Vec<T> {
-    counts.resize(chunks, 0);
-    spill.resize_with(chunks, Vec::new);
-    let predicted: usize = counts.iter().sum();
-    let mut out: Vec<T> = Vec::with_capacity(predicted);
-    let slots = split_lengths(&mut out.spare_capacity_mut()[..predicted], counts.iter().copied());
-    let made: Vec<usize> = slots
-        .into_par_iter()
-        .zip(spill.par_iter_mut())
-        .enumerate()
-        .map(|(c, (slot, spilled))| {
-            spilled.clear();
-            let mut n = 0;
-            fill(c, &mut |items: &[T]| {
-                for &x in items {
-                    match slot.get_mut(n) {
-                        Some(s) => {
-                            s.write(x);
-                        }
-                        None => spilled.push(x),
-                    }
-                    n += 1;
-                }
-            });
-            n
-        })
-        .collect();
-    if made == *counts {
-        // SAFETY: every chunk filled its whole slot, and the slots cover the first `predicted`.
-        unsafe { out.set_len(predicted) };
-        return out;
+/// What a threaded loop with per-chunk outputs keeps between calls to write them in place: each
+/// chunk's count in the last call, and a buffer per chunk for the items beyond it.
+pub struct InPlace<T> {
+    counts: Vec<usize>,
+    spill: Vec<Vec<T>>,
+}
+
+impl<T> Default for InPlace<T> {
+    fn default() -> Self {
+        InPlace { counts: Vec::new(), spill: Vec::new() }
     }
-    // Chunk c's items: the first min(made, predicted) of its slot, then what it spilled.
-    let written = split_lengths(&mut out.spare_capacity_mut()[..predicted], counts.iter().copied());
-    let total = made.iter().sum();
-    let mut joined: Vec<T> = Vec::with_capacity(total);
-    let targets = split_lengths(&mut joined.spare_capacity_mut()[..total], made.iter().copied());
-    targets.into_par_iter().zip(written).zip(spill.par_iter()).for_each(|((target, slot), spilled)| {
-        let kept = slot.len().min(target.len());
-        // SAFETY: the chunk wrote the first `kept` items of its slot.
-        let from_slot = slot[..kept].iter().map(|x| unsafe { x.assume_init_read() });
-        target.iter_mut().zip(from_slot.chain(spilled.iter().copied())).for_each(|(t, x)| {
-            t.write(x);
+}
+
+impl<T: Copy + Send + Sync> InPlace<T> {
+    /// The outputs of `chunks` tasks on threads, one after another in one vector, written in
+    /// place where the tasks make as many items as last time. `fill(c, emit)` makes chunk `c`'s
+    /// items in order, handing them to `emit`; each chunk writes at the offset that the last
+    /// call's counts give it, and past its slot into its own buffer. When every chunk's count is
+    /// the one predicted (a pile at rest: its contacts, step after step) the slots are the output
+    /// and nothing is copied; otherwise the parts are copied into one on threads. The same items
+    /// in the same order either way.
+    pub fn fill(&mut self, chunks: usize, fill: impl Fn(usize, &mut dyn FnMut(&[T])) + Sync) -> Vec<T> {
+        let InPlace { counts, spill } = self;
+        counts.resize(chunks, 0);
+        spill.resize_with(chunks, Vec::new);
+        let predicted: usize = counts.iter().sum();
+        let mut out: Vec<T> = Vec::with_capacity(predicted);
+        let slots = split_lengths(&mut out.spare_capacity_mut()[..predicted], counts.iter().copied());
+        let made: Vec<usize> = slots
+            .into_par_iter()
+            .zip(spill.par_iter_mut())
+            .enumerate()
+            .map(|(c, (slot, spilled))| {
+                spilled.clear();
+                let mut n = 0;
+                fill(c, &mut |items: &[T]| {
+                    for &x in items {
+                        match slot.get_mut(n) {
+                            Some(s) => {
+                                s.write(x);
+                            }
+                            None => spilled.push(x),
+                        }
+                        n += 1;
+                    }
+                });
+                n
+            })
+            .collect();
+        if made == *counts {
+            // SAFETY: every chunk filled its whole slot, and the slots cover the first `predicted`.
+            unsafe { out.set_len(predicted) };
+            return out;
+        }
+        // Chunk c's items: the first min(made, predicted) of its slot, then what it spilled.
+        let written = split_lengths(&mut out.spare_capacity_mut()[..predicted], counts.iter().copied());
+        let total = made.iter().sum();
+        let mut joined: Vec<T> = Vec::with_capacity(total);
+        let targets = split_lengths(&mut joined.spare_capacity_mut()[..total], made.iter().copied());
+        targets.into_par_iter().zip(written).zip(spill.par_iter()).for_each(|((target, slot), spilled)| {
+            let kept = slot.len().min(target.len());
+            // SAFETY: the chunk wrote the first `kept` items of its slot.
+            let from_slot = slot[..kept].iter().map(|x| unsafe { x.assume_init_read() });
+            target.iter_mut().zip(from_slot.chain(spilled.iter().copied())).for_each(|(t, x)| {
+                t.write(x);
+            });
         });
-    });
-    // SAFETY: each chunk's target holds its `made` items, and the targets cover the first `total`.
-    unsafe { joined.set_len(total) };
-    *counts = made;
-    joined
+        // SAFETY: each chunk's target holds its `made` items, and the targets cover the first `total`.
+        unsafe { joined.set_len(total) };
+        *counts = made;
+        joined
+    }
 }
 
 /// `slice` cut into consecutive parts of `lengths` (summing to at most its length), for threads
@@ -517,10 +528,10 @@ mod tests {
     /// Chunks written in place give the chunks' items in order whether each chunk makes as many
     /// as last time (no copy), more (its spill) or fewer (a hole closed), on any thread count.
     #[test]
-    fn fill_in_place_gives_the_chunks_items_in_order_whatever_their_counts_did() {
+    fn chunks_written_in_place_give_their_items_in_order_whatever_their_counts_did() {
         let item = |c: usize, k: usize| (c as u64) << 32 | k as u64;
-        let round = |sizes: &[usize], counts: &mut Vec<usize>, spill: &mut Vec<Vec<u64>>| {
-            fill_in_place(sizes.len(), counts, spill, |c, emit| {
+        let round = |sizes: &[usize], kept: &mut InPlace<u64>| {
+            kept.fill(sizes.len(), |c, emit| {
                 // In pieces of up to 3, as a narrow phase hands over each body's contacts.
                 let items: Vec<u64> = (0..sizes[c]).map(|k| item(c, k)).collect();
                 items.chunks(3).for_each(&mut *emit);
@@ -530,13 +541,13 @@ mod tests {
         let more: Vec<usize> = first.iter().enumerate().map(|(c, &n)| if c % 7 == 3 { n + 5 } else { n }).collect();
         let fewer: Vec<usize> = first.iter().enumerate().map(|(c, &n)| if c % 5 == 1 { n / 2 } else { n }).collect();
         for threads in [1, 4] {
-            let (mut counts, mut spill) = (Vec::new(), Vec::new());
+            let mut kept = InPlace::default();
             for sizes in [&first, &first, &more, &fewer, &fewer, &first] {
                 let expected: Vec<u64> =
                     sizes.iter().enumerate().flat_map(|(c, &n)| (0..n).map(move |k| item(c, k))).collect();
-                let got = parallel_on(threads, || round(sizes, &mut counts, &mut spill));
+                let got = parallel_on(threads, || round(sizes, &mut kept));
                 assert_eq!(got, expected, "{threads} thread(s)");
-                assert_eq!(&counts, sizes, "the counts kept for the next call");
+                assert_eq!(&kept.counts, sizes, "the counts kept for the next call");
             }
         }
     }

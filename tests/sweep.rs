@@ -12,13 +12,9 @@ fn moreau() -> Command {
     Command::new(env!("CARGO_BIN_EXE_moreau"))
 }
 
-fn temp(name: &str) -> Scratch {
-    Scratch::new(name)
-}
-
 #[test]
 fn sweep_writes_work_precision_data_profiles_and_a_table() {
-    let dir = temp("sweep");
+    let dir = Scratch::new("sweep");
     // A directory of two generated problems.
     for (name, args) in [
         ("lattice.dat", vec!["lattice", "--nx", "20", "--ny", "8"]),
@@ -91,7 +87,7 @@ fn sweep_writes_work_precision_data_profiles_and_a_table() {
 
 #[test]
 fn friction_study_writes_iterations_against_mu() {
-    let dir = temp("friction");
+    let dir = Scratch::new("friction");
     let scene = dir.join("box.toml");
     std::fs::write(
         &scene,

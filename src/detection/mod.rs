@@ -8,7 +8,7 @@ pub mod outline;
 
 use glam::DVec2;
 
-use crate::parallel::{fill_in_place, parallel, CHUNK};
+use crate::parallel::{parallel, InPlace, CHUNK};
 
 use crate::world::{Bodies, Materials, Periodic, Wall};
 
@@ -109,10 +109,9 @@ pub struct Detector {
     position: Vec<DVec2>,
     images: Vec<(u32, f64)>,
     periodic_pairs: Vec<(u32, u32, f64)>,
-    /// The threaded narrow phase: each chunk of bodies' contact count in the last detection,
-    /// where its contacts are written in this one, and a buffer per chunk for those beyond it.
-    chunk_counts: Vec<usize>,
-    spill: Vec<Vec<DetectedContact>>,
+    /// The threaded narrow phase's chunks of bodies: their contact counts in the last detection,
+    /// where their contacts are written in this one.
+    in_place: InPlace<DetectedContact>,
 }
 
 /// The configuration the kept candidate pairs were sought in: a pair closer than `alert` now was
@@ -229,7 +228,7 @@ impl Detector {
         let n = bodies.len();
         let mut out = if parallel(self.pairs.len().max(n)) {
             // Each chunk's contacts written where last step's counts put them: at rest no copy.
-            fill_in_place(n.div_ceil(CHUNK), &mut self.chunk_counts, &mut self.spill, |c, emit| {
+            self.in_place.fill(n.div_ceil(CHUNK), |c, emit| {
                 contacts_of(c * CHUNK, ((c + 1) * CHUNK).min(n), &mut Vec::new(), Some(emit))
             })
         } else {
