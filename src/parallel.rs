@@ -118,6 +118,58 @@ fn chunks(n: usize) -> impl IndexedParallelIterator<Item = std::ops::Range<usize
     (0..n.div_ceil(CHUNK)).into_par_iter().map(move |c| c * CHUNK..((c + 1) * CHUNK).min(n))
 }
 
+/// `n` copies of `value`, written on threads when `n` is large. `vec![value; n]` writes them on
+/// one thread (a `memset`), a serial pass before the threaded pass that fills the buffer.
+pub fn filled<T: Copy + Send + Sync>(n: usize, value: T) -> Vec<T> {
+    if !parallel(n) {
+        return vec![value; n];
+    }
+    let mut v = Vec::with_capacity(n);
+    v.par_extend(rayon::iter::repeat_n(value, n).with_min_len(CHUNK));
+    v
+}
+
+/// `f(k, item)` for each item `k` of `out`, cut into items of `per` entries (a body's velocity,
+/// say), on threads when there are many items.
+pub fn for_each_item<T: Send>(out: &mut [T], per: usize, f: impl Fn(usize, &mut [T]) + Sync + Send) {
+    let items = |(c, part): (usize, &mut [T])| {
+        part.chunks_mut(per).enumerate().for_each(|(i, item)| f(c * CHUNK + i, item));
+    };
+    match parallel(out.len() / per.max(1)) {
+        true => out.par_chunks_mut(per * CHUNK).enumerate().for_each(items),
+        false => items((0, out)),
+    }
+}
+
+/// `dst.copy_from_slice(src)`, on threads when the slices are large (a copy of a solve's
+/// impulses is otherwise a serial pass between threaded ones).
+pub fn copy<T: Copy + Send + Sync>(src: &[T], dst: &mut [T]) {
+    match parallel(src.len()) {
+        true => dst.par_chunks_mut(CHUNK).zip(src.par_chunks(CHUNK)).for_each(|(d, s)| d.copy_from_slice(s)),
+        false => dst.copy_from_slice(src),
+    }
+}
+
+/// Whether every value is finite, checked on threads when there are many.
+pub fn all_finite(x: &[f64]) -> bool {
+    first_failure(x.len(), |k| if x[k].is_finite() { Ok(()) } else { Err(()) }).is_ok()
+}
+
+/// `a == b`, compared on threads when the slices are long.
+pub fn equal(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len() && first_failure(a.len(), |k| if a[k] == b[k] { Ok(()) } else { Err(()) }).is_ok()
+}
+
+/// `src.to_vec()`, on threads when `src` is large.
+pub fn copied<T: Copy + Send + Sync>(src: &[T]) -> Vec<T> {
+    if !parallel(src.len()) {
+        return src.to_vec();
+    }
+    let mut v = Vec::with_capacity(src.len());
+    v.par_extend(src.par_iter().copied().with_min_len(CHUNK));
+    v
+}
+
 /// `[f(0), …, f(n − 1)]`, on threads when `n` is large: each item its own, in order, so the
 /// same values for any thread count.
 pub fn map_indices<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync + Send) -> Vec<T> {
@@ -513,6 +565,40 @@ mod tests {
         assert!(caught.is_err(), "the round went on past a panicking item");
         // A crew after it works.
         assert_eq!(with_crew(2, |crew| crew.round(4, &|i| i)), 6);
+    }
+
+    #[test]
+    fn fills_copies_and_the_finite_test_match_their_serial_forms_on_threads() {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        pool.install(|| {
+            // Below and above PARALLEL_MIN, and a length that ends inside a chunk.
+            for n in [0, 5, PARALLEL_MIN, 3 * CHUNK * 7 + 13] {
+                assert_eq!(filled(n, 0.0), vec![0.0; n]);
+                assert_eq!(filled(n, [1.5, -2.0]), vec![[1.5, -2.0]; n]);
+                let src: Vec<f64> = (0..n).map(|k| (k as f64).sin()).collect();
+                assert_eq!(copied(&src), src);
+                let mut dst = vec![7.0; n];
+                copy(&src, &mut dst);
+                assert_eq!(dst, src);
+                assert!(all_finite(&src));
+                assert!(equal(&src, &dst));
+                if n > 0 {
+                    assert!(!equal(&src, &dst[..n - 1]), "n = {n}: lengths differ");
+                    dst[n - 1] += 1.0;
+                    assert!(!equal(&src, &dst), "n = {n}: the last value differs");
+                }
+                let mut pairs = vec![0.0; 2 * n];
+                for_each_item(&mut pairs, 2, |k, item| (item[0], item[1]) = (k as f64, -(k as f64)));
+                assert!(pairs.chunks(2).enumerate().all(|(k, p)| p == [k as f64, -(k as f64)]), "n = {n}");
+                for bad in [f64::NAN, f64::INFINITY] {
+                    let mut with_bad = src.clone();
+                    if let Some(last) = with_bad.last_mut() {
+                        *last = bad;
+                        assert!(!all_finite(&with_bad), "n = {n}: {bad} in the last place not seen");
+                    }
+                }
+            }
+        });
     }
 
     #[test]

@@ -8,7 +8,7 @@ pub mod outline;
 
 use glam::DVec2;
 
-use crate::parallel::{parallel, InPlace, CHUNK};
+use crate::parallel::{first_failure, map_indices, max_over, parallel, InPlace, CHUNK};
 
 use crate::world::{Bodies, Materials, Periodic, Wall};
 
@@ -129,8 +129,15 @@ impl KeptPairs {
         let half = 0.5 * self.skin;
         position.len() == self.position.len()
             && alert == self.alert
-            && (0..position.len())
-                .all(|k| position[k].distance(self.position[k]) + (radius[k] - self.radius[k]).max(0.0) <= half)
+            && first_failure(position.len(), |k| {
+                let moved = position[k].distance(self.position[k]) + (radius[k] - self.radius[k]).max(0.0);
+                if moved <= half {
+                    Ok(())
+                } else {
+                    Err(())
+                }
+            })
+            .is_ok()
     }
 }
 
@@ -168,8 +175,7 @@ impl Detector {
         reach: &[f64],
         wall_reach: &[f64],
     ) -> Vec<DetectedContact> {
-        self.radius.clear();
-        self.radius.extend((0..bodies.len()).map(|k| bodies.bounding_radius[k] + reach.get(k).copied().unwrap_or(0.0)));
+        self.radius = map_indices(bodies.len(), |k| bodies.bounding_radius[k] + reach.get(k).copied().unwrap_or(0.0));
         match config.periodic {
             None => self.candidate_pairs(bodies, config.position, alert),
             Some(cell) => {
@@ -178,7 +184,7 @@ impl Detector {
             }
         }
         let reach_of = |k: usize| reach.get(k).copied().unwrap_or(0.0);
-        let rmax = self.radius.iter().copied().fold(0.0, f64::max);
+        let rmax = max_over(self.radius.len(), |k| self.radius[k]);
         // Each wall's bounds widened by what can reach it: a body outside is not tested.
         let wall_bounds: Vec<(DVec2, DVec2, f64)> = walls
             .iter()

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use super::colouring::Colouring;
 use super::{BlockSparse, Mat2};
-use crate::parallel::{fill_and_sum, first_failure, map_indices, parallel, CHUNK};
+use crate::parallel::{fill_and_sum, filled, first_failure, map_indices, parallel, CHUNK};
 
 /// Contact ranges `(first, end)` by colour: blocks of one colour share no moving body.
 pub type BlockColours = Vec<Vec<(usize, usize)>>;
@@ -783,7 +783,7 @@ impl MatrixFree {
     /// sums its own contacts (no two threads write one body); the same bits either way.
     pub fn body_velocities(&self, r: &[f64]) -> Vec<f64> {
         let s = self.dofs.per_body();
-        let mut v = vec![0.0; s * self.bodies.len()];
+        let mut v = filled(s * self.bodies.len(), 0.0);
         if parallel(self.rows.len()) {
             v.par_chunks_mut(s * CHUNK).enumerate().for_each(|(chunk, vs)| {
                 for (k, vk) in vs.chunks_mut(s).enumerate() {
@@ -886,7 +886,7 @@ impl MatrixFree {
             return first_failure(blocks.len(), |a| if bad(&blocks[a]) { Err(a) } else { Ok(()) }).err();
         }
         let n = self.n_contacts();
-        let mut blocks = vec![[0.0; 4]; n];
+        let mut blocks = filled(n, [0.0; 4]);
         let fill = |(c, part): (usize, &mut [Mat2])| {
             part.iter_mut().enumerate().for_each(|(k, w)| *w = self.diag_block(c * CHUNK + k));
             part.iter().position(&bad).map(|k| c * CHUNK + k)

@@ -164,7 +164,7 @@ impl ContactProblem {
 
     /// `u = W r + q` (one operator product).
     pub fn velocity(&self, r: &[f64]) -> Vec<f64> {
-        let mut u = vec![0.0; r.len()];
+        let mut u = crate::parallel::filled(r.len(), 0.0);
         self.velocity_into(r, &mut u);
         u
     }

@@ -516,8 +516,8 @@ pub fn rolling_refusal(rolling: bool, kind: SolverKind, criterion: StopCriterion
 pub fn solve(problem: &ContactProblem, kind: SolverKind, opts: &SolverOptions, r0: Option<&[f64]>) -> SolveReport {
     let n = problem.unknowns();
     let r0: Vec<f64> = match r0 {
-        Some(r) if r.len() == n && r.iter().all(|x| x.is_finite()) => r.to_vec(),
-        _ => vec![0.0; n],
+        Some(r) if r.len() == n && crate::parallel::all_finite(r) => crate::parallel::copied(r),
+        _ => crate::parallel::filled(n, 0.0),
     };
     let mut report = match kind {
         SolverKind::Nlgs => nlgs::solve(problem, opts, r0),

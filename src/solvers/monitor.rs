@@ -12,7 +12,7 @@
 use super::lmgc_criteria::LmgcMeasures;
 use super::stopping::{check_work, CheckCadence, JudgedMeasure, StopReason};
 use super::{HistoryPoint, SolveReport, SolverKind, SolverOptions};
-use crate::parallel::chunked_sum;
+use crate::parallel::{all_finite, chunked_sum, copied, copy, equal};
 use crate::problem::cone::project_box;
 use crate::problem::residual::problem_error;
 use crate::problem::{ContactProblem, Mat2};
@@ -68,7 +68,7 @@ impl<'a> Monitor<'a> {
             excluded: Duration::ZERO,
             w_products: 0,
             iteration: 0,
-            r_prev: r0.to_vec(),
+            r_prev: copied(r0),
             light_rule: true,
             tol_light: opts.tol,
             history: Vec::new(),
@@ -78,7 +78,7 @@ impl<'a> Monitor<'a> {
             stop_reason: None,
             cadence: CheckCadence::every(check_work(problem, opts.criterion)),
             products_seen: 0,
-            scratch_u: vec![0.0; r0.len()],
+            scratch_u: crate::parallel::filled(r0.len(), 0.0),
             scratch_check: None,
             scratch_body_velocity: None,
             iterates: Vec::new(),
@@ -158,7 +158,7 @@ impl<'a> Monitor<'a> {
     /// [`Self::observe`]; with `check`, the full check is made whatever the cadence says.
     fn observe_checking(&mut self, r: &[f64], u: Option<&[f64]>, check: bool) -> bool {
         self.iteration += 1;
-        if r.iter().any(|x| !x.is_finite()) {
+        if !all_finite(r) {
             self.stop_with(StopReason::Diverged, "diverged: the iterate holds NaN or Inf");
             return true;
         }
@@ -198,9 +198,9 @@ impl<'a> Monitor<'a> {
                         match &mut self.best {
                             Some((b, kept)) => {
                                 *b = judged;
-                                kept.copy_from_slice(r);
+                                copy(r, kept);
                             }
-                            None => self.best = Some((judged, r.to_vec())),
+                            None => self.best = Some((judged, copied(r))),
                         }
                     }
                     if judged <= self.opts.tol {
@@ -219,7 +219,7 @@ impl<'a> Monitor<'a> {
                 }
             }
         }
-        self.r_prev.copy_from_slice(r);
+        copy(r, &mut self.r_prev);
         self.products_seen = self.w_products;
         if self.converged {
             self.stop_with(StopReason::Converged, "converged");
@@ -268,7 +268,7 @@ impl<'a> Monitor<'a> {
         // The last check's product, when it was of the iterate returned (the same bits).
         let mut body_velocity = None;
         let (mut u, mut error, mut judged) = match self.scratch_check.take() {
-            Some((iteration, error, judged)) if iteration == self.iteration && r == self.r_prev => {
+            Some((iteration, error, judged)) if iteration == self.iteration && equal(&r, &self.r_prev) => {
                 body_velocity = self.scratch_body_velocity.take();
                 (std::mem::take(&mut self.scratch_u), error, judged)
             }

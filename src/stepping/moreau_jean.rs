@@ -22,7 +22,7 @@ use super::checks::{check_overlaps, check_state, pressed_share, state_failure, s
 use super::projection::{end_of_step_gaps, project_positions, targets, GapSummary};
 use super::simulation::{ContactState, Simulation, StepError, StepReport};
 use crate::detection::{Antagonist, Configuration, DetectedContact, Detector};
-use crate::parallel::{map_indices, max_over, parallel, CHUNK};
+use crate::parallel::{all_finite, filled, map_indices, max_over, parallel, CHUNK};
 use crate::problem::colouring::Colouring;
 use crate::problem::cone::status_of;
 use crate::problem::matrix_free::Dofs;
@@ -30,21 +30,6 @@ use crate::problem::{Body, Contact, ContactProblem, Delassus, MatrixFree};
 use crate::solvers::StopReason;
 use crate::world::{BodyShape, Wall, World};
 use rayon::prelude::*;
-
-/// Generalised velocity vector ([`Dofs::per_body`] entries per body) of the bodies' velocities.
-fn stacked_velocities(world: &World, dofs: Dofs) -> Vec<f64> {
-    let b = &world.bodies;
-    let s = dofs.per_body();
-    let mut v = vec![0.0; s * b.len()];
-    for k in 0..b.len() {
-        v[s * k] = b.velocity[k].x;
-        v[s * k + 1] = b.velocity[k].y;
-        if dofs.rotation {
-            v[s * k + 2] = b.spin[k];
-        }
-    }
-    v
-}
 
 /// The matrix-free operator of the detected contacts, levers taken at the bodies' positions;
 /// with rolling resistance, each contact's rolling radius `R_i R_j / (R_i + R_j)` (`R_i` against
@@ -92,12 +77,10 @@ fn operator(world: &World, contacts: &[DetectedContact], dofs: Dofs) -> Result<M
 fn step_reach(world: &World, h: f64) -> (Vec<f64>, Vec<f64>) {
     let b = &world.bodies;
     let fall = world.effects.gravity.map_or(0.0, |g| h * g.length());
-    let bodies = (0..b.len())
-        .map(|k| {
-            let spin = if b.has_rotation() { b.spin[k].abs() * b.bounding_radius[k] } else { 0.0 };
-            h * (b.velocity[k].length() + fall + spin)
-        })
-        .collect();
+    let bodies = map_indices(b.len(), |k| {
+        let spin = if b.has_rotation() { b.spin[k].abs() * b.bounding_radius[k] } else { 0.0 };
+        h * (b.velocity[k].length() + fall + spin)
+    });
     let walls = world
         .walls
         .iter()
@@ -136,23 +119,38 @@ fn detect(
     detected
 }
 
-/// Velocities at the start of the step, and free velocities (gravity over the step).
+/// Velocities at the start of the step ([`Dofs::per_body`] entries per body), and free
+/// velocities (gravity over the step): both in one pass over the bodies, on threads.
 fn free_velocities(world: &World, forces: &[(DVec2, f64)], dofs: Dofs, h: f64) -> (Vec<f64>, Vec<f64>) {
-    let v_begin = stacked_velocities(world, dofs);
-    let mut v_free = v_begin.clone();
     let s = dofs.per_body();
     let b = &world.bodies;
-    // Along an axis where a body holds its velocity, nothing changes it.
-    if let Some(g) = world.effects.gravity {
-        for k in 0..b.len() {
-            let [mx, my] = b.axis_inv_mass(k);
-            if mx > 0.0 {
-                v_free[s * k] += h * g.x;
+    let gravity = world.effects.gravity;
+    let (mut v_begin, mut v_free) = (filled(s * b.len(), 0.0), filled(s * b.len(), 0.0));
+    let fill = |first: usize, begin: &mut [f64], free: &mut [f64]| {
+        for (i, (vb, vf)) in begin.chunks_mut(s).zip(free.chunks_mut(s)).enumerate() {
+            let k = first + i;
+            (vb[0], vb[1]) = (b.velocity[k].x, b.velocity[k].y);
+            if dofs.rotation {
+                vb[2] = b.spin[k];
             }
-            if my > 0.0 {
-                v_free[s * k + 1] += h * g.y;
+            vf.copy_from_slice(vb);
+            // Along an axis where a body holds its velocity, nothing changes it.
+            if let Some(g) = gravity {
+                let [mx, my] = b.axis_inv_mass(k);
+                if mx > 0.0 {
+                    vf[0] += h * g.x;
+                }
+                if my > 0.0 {
+                    vf[1] += h * g.y;
+                }
             }
         }
+    };
+    match parallel(b.len()) {
+        true => (v_begin.par_chunks_mut(s * CHUNK).zip(v_free.par_chunks_mut(s * CHUNK)))
+            .enumerate()
+            .for_each(|(c, (begin, free))| fill(c * CHUNK, begin, free)),
+        false => fill(0, &mut v_begin, &mut v_free),
     }
     // Constant forces of driven bodies (pistons), then a host's forces for this step (see
     // `Simulation::apply_force`).
@@ -234,9 +232,9 @@ fn local_problem(
             q[2 * k] = qn;
         }
     };
-    let mut q = vec![0.0; unknowns];
-    let mut mu = vec![0.0; nc];
-    let mut gap_rate = vec![0.0; nc];
+    let mut q = filled(unknowns, 0.0);
+    let mut mu = filled(nc, 0.0);
+    let mut gap_rate = filled(nc, 0.0);
     if parallel(nc) {
         q[..2 * nc]
             .par_chunks_mut(2 * CHUNK)
@@ -346,10 +344,10 @@ fn update_bodies(
         }
         (outran, broken)
     };
-    let mut position = vec![DVec2::ZERO; n];
-    let mut velocity = vec![DVec2::ZERO; n];
+    let mut position = filled(n, DVec2::ZERO);
+    let mut velocity = filled(n, DVec2::ZERO);
     let (mut angle, mut spin) = match turns {
-        true => (vec![0.0; n], vec![0.0; n]),
+        true => (filled(n, 0.0), filled(n, 0.0)),
         false => (Vec::new(), Vec::new()),
     };
     let combine = |(o1, b1): (bool, Option<usize>), (o2, b2): (bool, Option<usize>)| (o1 || o2, b1.or(b2));
@@ -537,7 +535,7 @@ fn apply(
         impulses = solved.r;
         // The solve's last product's `M⁻¹ Bᵀ r`, when it was of these impulses (unshifted).
         let kept = solved.body_velocity.filter(|_| shift.is_empty());
-        if impulses.iter().any(|x| !x.is_finite()) {
+        if !all_finite(&impulses) {
             return Err(StepError::Diverged {
                 step,
                 message: format!("the {} solve returned non-finite impulses", sim.settings.solver.name()),

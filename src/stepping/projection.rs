@@ -8,7 +8,7 @@ use glam::DVec2;
 
 use crate::backend::Backend;
 use crate::detection::{Antagonist, DetectedContact};
-use crate::parallel::{parallel, reduce_chunks, CHUNK};
+use crate::parallel::{filled, for_each_item, parallel, reduce_chunks, CHUNK};
 use crate::problem::{ContactProblem, Delassus, MatrixFree};
 use crate::solvers::{SolverKind, SolverOptions, StopCriterion};
 use crate::world::{Bodies, Wall, World};
@@ -47,15 +47,13 @@ pub(super) fn end_of_step_gaps(
 ) -> (Vec<f64>, Vec<f64>, GapSummary) {
     let b = &world.bodies;
     let s = op.dofs().per_body();
-    let mut dx = vec![0.0; s * b.len()];
-    for k in 0..b.len() {
-        let d = b.position[k] - start[k];
-        dx[s * k] = d.x;
-        dx[s * k + 1] = d.y;
+    let mut dx = filled(s * b.len(), 0.0);
+    for_each_item(&mut dx, s, |k, dxk| {
+        (dxk[0], dxk[1]) = (b.position[k].x - start[k].x, b.position[k].y - start[k].y);
         if s == 3 {
-            dx[s * k + 2] = b.angle[k] - start_angle[k];
+            dxk[2] = b.angle[k] - start_angle[k];
         }
-    }
+    });
     let fill = |first: usize, gaps: &mut [f64], targets: &mut [f64]| {
         let mut summary = GapSummary::default();
         for (k, (gap, target)) in gaps.iter_mut().zip(targets).enumerate() {
@@ -71,7 +69,7 @@ pub(super) fn end_of_step_gaps(
         summary
     };
     let n = contacts.len();
-    let (mut gaps, mut targets) = (vec![0.0; n], vec![0.0; n]);
+    let (mut gaps, mut targets) = (filled(n, 0.0), filled(n, 0.0));
     let summary = match parallel(n) {
         true => gaps
             .par_chunks_mut(CHUNK)

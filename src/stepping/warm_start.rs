@@ -8,7 +8,7 @@ use crate::detection::{Antagonist, DetectedContact};
 use rayon::prelude::*;
 use std::sync::Arc;
 
-use crate::parallel::{split_lengths, CHUNK};
+use crate::parallel::{filled, split_lengths, CHUNK};
 
 use crate::problem::colouring::Colouring;
 use crate::problem::matrix_free::{BlockColours, Incidence, MatrixFree, Neighbours};
@@ -118,10 +118,10 @@ impl WarmStart {
     /// bodies can move now, `rolling` whether the contacts have rolling unknowns.
     pub fn recall(&self, contacts: &[DetectedContact], moving: &[bool], rolling: bool, h: f64) -> Recalled {
         let nc = contacts.len();
-        let mut impulses = vec![0.0; if rolling { 3 * nc } else { 2 * nc }];
+        let mut impulses = filled(if rolling { 3 * nc } else { 2 * nc }, 0.0);
         let same_bodies = self.moving == moving;
         let colours = self.colours.as_ref().filter(|_| same_bodies);
-        let mut kept = colours.map(|_| vec![None; nc]);
+        let mut kept = colours.map(|_| filled(nc, None));
         // An impulse is a force times the step: recalled at the new step's.
         let scale = if self.time_step > 0.0 && self.time_step != h { h / self.time_step } else { 1.0 };
         // Both lists are sorted by key: one merge, in chunks of contacts on threads, each chunk
