@@ -150,14 +150,19 @@ pub fn copy<T: Copy + Send + Sync>(src: &[T], dst: &mut [T]) {
     }
 }
 
+/// Whether `holds(k)` for every `k < n`, tested on threads when `n` is large.
+pub fn all(n: usize, holds: impl Fn(usize) -> bool + Sync + Send) -> bool {
+    first_failure(n, |k| if holds(k) { Ok(()) } else { Err(()) }).is_ok()
+}
+
 /// Whether every value is finite, checked on threads when there are many.
 pub fn all_finite(x: &[f64]) -> bool {
-    first_failure(x.len(), |k| if x[k].is_finite() { Ok(()) } else { Err(()) }).is_ok()
+    all(x.len(), |k| x[k].is_finite())
 }
 
 /// `a == b`, compared on threads when the slices are long.
 pub fn equal(a: &[f64], b: &[f64]) -> bool {
-    a.len() == b.len() && first_failure(a.len(), |k| if a[k] == b[k] { Ok(()) } else { Err(()) }).is_ok()
+    a.len() == b.len() && all(a.len(), |k| a[k] == b[k])
 }
 
 /// `src.to_vec()`, on threads when `src` is large.

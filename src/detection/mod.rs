@@ -8,7 +8,7 @@ pub mod outline;
 
 use glam::DVec2;
 
-use crate::parallel::{first_failure, map_indices, max_over, parallel, InPlace, CHUNK};
+use crate::parallel::{all, map_indices, max_over, parallel, InPlace, CHUNK};
 
 use crate::world::{Bodies, Materials, Periodic, Wall};
 
@@ -129,15 +129,9 @@ impl KeptPairs {
         let half = 0.5 * self.skin;
         position.len() == self.position.len()
             && alert == self.alert
-            && first_failure(position.len(), |k| {
-                let moved = position[k].distance(self.position[k]) + (radius[k] - self.radius[k]).max(0.0);
-                if moved <= half {
-                    Ok(())
-                } else {
-                    Err(())
-                }
+            && all(position.len(), |k| {
+                position[k].distance(self.position[k]) + (radius[k] - self.radius[k]).max(0.0) <= half
             })
-            .is_ok()
     }
 }
 
