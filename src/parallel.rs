@@ -130,14 +130,59 @@ pub fn filled<T: Copy + Send + Sync>(n: usize, value: T) -> Vec<T> {
 }
 
 /// `f(k, item)` for each item `k` of `out`, cut into items of `per` entries (a body's velocity,
-/// say), on threads when there are many items.
+/// say), on threads when there are many items. `out` holds whole items.
 pub fn for_each_item<T: Send>(out: &mut [T], per: usize, f: impl Fn(usize, &mut [T]) + Sync + Send) {
+    assert_eq!(out.len() % per, 0, "whole items of {per} entries");
     let items = |(c, part): (usize, &mut [T])| {
-        part.chunks_mut(per).enumerate().for_each(|(i, item)| f(c * CHUNK + i, item));
+        part.chunks_exact_mut(per).enumerate().for_each(|(i, item)| f(c * CHUNK + i, item));
     };
-    match parallel(out.len() / per.max(1)) {
+    match parallel(out.len() / per) {
         true => out.par_chunks_mut(per * CHUNK).enumerate().for_each(items),
         false => items((0, out)),
+    }
+}
+
+/// `f(k, &mut out[k])` for each entry `k` of `out`, on threads when there are many: a vector
+/// update entry by entry (an axpy, a negation), each entry its own.
+pub fn for_each_value<T: Send>(out: &mut [T], f: impl Fn(usize, &mut T) + Sync + Send) {
+    // A plain loop per chunk: items of one entry through `for_each_item` cost a slice each.
+    let values = |(c, part): (usize, &mut [T])| part.iter_mut().enumerate().for_each(|(i, x)| f(c * CHUNK + i, x));
+    match parallel(out.len()) {
+        true => out.par_chunks_mut(CHUNK).enumerate().for_each(values),
+        false => values((0, out)),
+    }
+}
+
+/// [`for_each_item`] over two outputs at once: `f(k, a_k, b_k)` with `a_k` the `per_a` entries
+/// of `a` from `per_a k` and `b_k` the `per_b` entries of `b` from `per_b k` (a contact's
+/// impulse and its status, a body's velocities at the start of a step and free of contacts).
+pub fn for_each_item_pair<A: Send, B: Send>(
+    a: (&mut [A], usize),
+    b: (&mut [B], usize),
+    f: impl Fn(usize, &mut [A], &mut [B]) + Sync + Send,
+) {
+    count_item_pairs(a, b, |k, x, y| {
+        f(k, x, y);
+        false
+    });
+}
+
+/// [`for_each_item_pair`], counting the items for which `f` returns true (every item is
+/// visited: a projection that reports which contacts changed status).
+pub fn count_item_pairs<A: Send, B: Send>(
+    (a, per_a): (&mut [A], usize),
+    (b, per_b): (&mut [B], usize),
+    f: impl Fn(usize, &mut [A], &mut [B]) -> bool + Sync + Send,
+) -> usize {
+    let n = a.len() / per_a;
+    assert!(a.len() % per_a == 0 && b.len() == n * per_b, "both outputs hold the same whole items");
+    let items = |(c, (xs, ys)): (usize, (&mut [A], &mut [B]))| {
+        let pairs = xs.chunks_exact_mut(per_a).zip(ys.chunks_exact_mut(per_b)).enumerate();
+        pairs.map(|(i, (x, y))| usize::from(f(c * CHUNK + i, x, y))).sum::<usize>()
+    };
+    match parallel(n) {
+        true => a.par_chunks_mut(per_a * CHUNK).zip(b.par_chunks_mut(per_b * CHUNK)).enumerate().map(items).sum(),
+        false => items((0, (a, b))),
     }
 }
 
@@ -153,6 +198,11 @@ pub fn copy<T: Copy + Send + Sync>(src: &[T], dst: &mut [T]) {
 /// Whether `holds(k)` for every `k < n`, tested on threads when `n` is large.
 pub fn all(n: usize, holds: impl Fn(usize) -> bool + Sync + Send) -> bool {
     first_failure(n, |k| if holds(k) { Ok(()) } else { Err(()) }).is_ok()
+}
+
+/// Whether `holds(k)` for some `k < n`, tested on threads when `n` is large.
+pub fn any(n: usize, holds: impl Fn(usize) -> bool + Sync + Send) -> bool {
+    !all(n, |k| !holds(k))
 }
 
 /// Whether every value is finite, checked on threads when there are many.
@@ -595,6 +645,20 @@ mod tests {
                 let mut pairs = vec![0.0; 2 * n];
                 for_each_item(&mut pairs, 2, |k, item| (item[0], item[1]) = (k as f64, -(k as f64)));
                 assert!(pairs.chunks(2).enumerate().all(|(k, p)| p == [k as f64, -(k as f64)]), "n = {n}");
+                let mut values = vec![0.0; n];
+                for_each_value(&mut values, |k, x| *x = 2.0 * k as f64);
+                assert!(values.iter().enumerate().all(|(k, &x)| x == 2.0 * k as f64), "n = {n}");
+                assert_eq!(any(n, |k| values[k] == 2.0 * (n as f64 - 1.0)), n > 0, "n = {n}: the last value");
+                assert!(!any(n, |k| values[k] < 0.0), "n = {n}");
+                let (mut triples, mut flags) = (vec![0u64; 3 * n], vec![false; n]);
+                let odd = count_item_pairs((&mut triples, 3), (&mut flags, 1), |k, t, f| {
+                    t.fill(k as u64);
+                    f[0] = k % 2 == 1;
+                    f[0]
+                });
+                assert_eq!(odd, n / 2, "n = {n}: items counted");
+                assert!(triples.chunks(3).enumerate().all(|(k, t)| t == [k as u64; 3]), "n = {n}");
+                assert!(flags.iter().enumerate().all(|(k, &f)| f == (k % 2 == 1)), "n = {n}");
                 for bad in [f64::NAN, f64::INFINITY] {
                     let mut with_bad = src.clone();
                     if let Some(last) = with_bad.last_mut() {

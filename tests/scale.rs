@@ -206,6 +206,25 @@ fn threaded_nlgs_converges_and_is_the_same_on_two_and_four_threads() {
 }
 
 #[test]
+fn the_vector_solvers_update_on_threads_and_give_the_same_bits_on_one_two_and_four() {
+    // Jacobi, CPG, PCPG, APGD and LATIN update their vectors in chunks on threads above
+    // PARALLEL_MIN contacts; every chunk must do what one thread does.
+    let p = lattice_packing(80, 40, 0.5, 7);
+    assert!(p.n_contacts() > moreau::parallel::PARALLEL_MIN);
+    let start = moreau::problem::residual::error_of(&p, &vec![0.0; 2 * p.n_contacts()]).0;
+    let opts = SolverOptions { tol: 1e-12, max_iter: 40, ..Default::default() };
+    let bits = |r: &moreau::SolveReport| r.r.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    for kind in [SolverKind::Jacobi, SolverKind::Cpg, SolverKind::Pcpg, SolverKind::Apgd, SolverKind::Latin] {
+        let runs: Vec<_> = [1, 2, 4].iter().map(|&t| on_threads(t, || solve(&p, kind, &opts, None))).collect();
+        assert!(runs[0].error < 0.5 * start, "{kind:?} made no progress: {:.2e} from {start:.2e}", runs[0].error);
+        for (t, run) in [2, 4].iter().zip(&runs[1..]) {
+            assert_eq!(run.iterations, runs[0].iterations, "{kind:?} on {t} threads");
+            assert_eq!(bits(run), bits(&runs[0]), "{kind:?}: {t} threads differ from one");
+        }
+    }
+}
+
+#[test]
 fn anderson_mixing_runs_on_threads_and_is_the_same_on_two_and_four() {
     let p = lattice_packing(80, 40, 0.5, 6);
     let opts = SolverOptions { tol: 1e-8, max_iter: 20_000, ..Default::default() };

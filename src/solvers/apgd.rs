@@ -6,15 +6,19 @@
 
 use super::monitor::Monitor;
 use super::{SolveReport, SolverKind, SolverOptions};
+use crate::parallel::{
+    any, chunked_sum, chunked_sums, copied, copy, filled, for_each_item, for_each_item_pair, for_each_value,
+    map_indices,
+};
 use crate::problem::cone::project_box;
 use crate::problem::residual::problem_error;
 use crate::problem::{dot, norm, ContactProblem};
 
 fn project(r: &mut [f64], thresholds: &[f64]) {
-    for (a, &s) in thresholds.iter().enumerate() {
-        r[2 * a] = r[2 * a].max(0.0);
-        r[2 * a + 1] = crate::problem::cone::clamp_symmetric(r[2 * a + 1], s);
-    }
+    for_each_item(&mut r[..2 * thresholds.len()], 2, |a, ra| {
+        ra[0] = ra[0].max(0.0);
+        ra[1] = crate::problem::cone::clamp_symmetric(ra[1], thresholds[a]);
+    });
 }
 
 fn objective(x: &[f64], wx: &[f64], q: &[f64]) -> f64 {
@@ -25,8 +29,7 @@ fn objective(x: &[f64], wx: &[f64], q: &[f64]) -> f64 {
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut gamma: Vec<f64>) -> SolveReport {
     let n = gamma.len();
     let every = opts.apgd_threshold_every.max(1);
-    let update_thresholds =
-        |r: &[f64]| -> Vec<f64> { p.mu.iter().enumerate().map(|(a, m)| m * r[2 * a].max(0.0)).collect() };
+    let update_thresholds = |r: &[f64]| -> Vec<f64> { map_indices(p.mu.len(), |a| p.mu[a] * r[2 * a].max(0.0)) };
     let mut thresholds = update_thresholds(&gamma);
     project(&mut gamma, &thresholds);
     let mut monitor = Monitor::new(p, opts, SolverKind::Apgd, &gamma);
@@ -42,25 +45,25 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut gamma: Vec<f64>) -> S
     p.w.apply(&gamma, &mut w_gamma);
     monitor.w_products += 2;
 
-    let mut y = gamma.clone();
-    let mut w_y = w_gamma.clone();
+    let mut y = copied(&gamma);
+    let mut w_y = copied(&w_gamma);
     let mut theta = 1.0f64;
-    let (mut g, mut next, mut w_next, mut u) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    let mut best = (f64::INFINITY, gamma.clone());
+    let (mut g, mut next, mut w_next, mut u) = (filled(n, 0.0), filled(n, 0.0), filled(n, 0.0), filled(n, 0.0));
+    let mut best = (f64::INFINITY, copied(&gamma));
     loop {
-        for i in 0..n {
-            g[i] = w_y[i] + p.q[i];
-        }
+        for_each_value(&mut g, |i, g| *g = w_y[i] + p.q[i]);
         let f_y = objective(&y, &w_y, &p.q);
         loop {
-            for i in 0..n {
-                next[i] = y[i] - g[i] / lipschitz;
-            }
+            for_each_value(&mut next, |i, x| *x = y[i] - g[i] / lipschitz);
             project(&mut next, &thresholds);
             p.w.apply(&next, &mut w_next);
             monitor.w_products += 1;
-            let d: Vec<f64> = next.iter().zip(&y).map(|(a, b)| a - b).collect();
-            let bound = f_y + dot(&g, &d) + 0.5 * lipschitz * dot(&d, &d);
+            // g·d and d·d for d = next − y, each the bits of its own `dot`.
+            let [g_d, d_d] = chunked_sums(n, |i| {
+                let d = next[i] - y[i];
+                [g[i] * d, d * d]
+            });
+            let bound = f_y + g_d + 0.5 * lipschitz * d_d;
             // A step that overflows is refused (`inf <= inf` held, and impulses of 1e307 were taken).
             let f_next = objective(&next, &w_next, &p.q);
             let sufficient = f_next.is_finite() && bound.is_finite() && f_next <= bound + 1e-14 * bound.abs();
@@ -71,16 +74,16 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut gamma: Vec<f64>) -> S
         }
         let mut theta_next = 0.5 * (-theta * theta + theta * (theta * theta + 4.0).sqrt());
         let beta = theta * (1.0 - theta) / (theta * theta + theta_next);
-        let restart = g.iter().zip(next.iter().zip(&gamma)).map(|(g, (a, b))| g * (a - b)).sum::<f64>() > 0.0;
+        let restart = chunked_sum(n, |i| g[i] * (next[i] - gamma[i])) > 0.0;
         if restart {
             theta_next = 1.0;
-            y.copy_from_slice(&next);
-            w_y.copy_from_slice(&w_next);
+            copy(&next, &mut y);
+            copy(&w_next, &mut w_y);
         } else {
-            for i in 0..n {
-                y[i] = next[i] + beta * (next[i] - gamma[i]);
-                w_y[i] = w_next[i] + beta * (w_next[i] - w_gamma[i]);
-            }
+            for_each_item_pair((&mut y, 1), (&mut w_y, 1), |i, y, w_y| {
+                y[0] = next[i] + beta * (next[i] - gamma[i]);
+                w_y[0] = w_next[i] + beta * (w_next[i] - w_gamma[i]);
+            });
         }
         lipschitz *= 0.9;
         theta = theta_next;
@@ -92,8 +95,8 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut gamma: Vec<f64>) -> S
             thresholds = update_thresholds(gamma);
             project(gamma, &thresholds);
             p.w.apply(gamma, w_gamma);
-            y.copy_from_slice(gamma);
-            w_y.copy_from_slice(w_gamma);
+            copy(gamma, y);
+            copy(w_gamma, w_y);
         };
         if monitor.iteration() % every == every - 1 {
             rebox(&mut gamma, &mut w_gamma, &mut y, &mut w_y);
@@ -101,13 +104,11 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut gamma: Vec<f64>) -> S
             theta = 1.0;
         }
         let error_at = |gamma: &[f64], w_gamma: &[f64], u: &mut [f64]| {
-            for i in 0..n {
-                u[i] = w_gamma[i] + p.q[i];
-            }
+            for_each_value(u, |i, u| *u = w_gamma[i] + p.q[i]);
             problem_error(p, gamma, u)
         };
         let mut err = error_at(&gamma, &w_gamma, &mut u);
-        let outside_cone = (0..p.n_contacts()).any(|a| gamma[2 * a + 1].abs() > p.mu[a] * gamma[2 * a]);
+        let outside_cone = any(p.n_contacts(), |a| gamma[2 * a + 1].abs() > p.mu[a] * gamma[2 * a]);
         if err <= opts.tol && outside_cone {
             // Thresholds lag the normal impulses: finish on the cone itself.
             rebox(&mut gamma, &mut w_gamma, &mut y, &mut w_y);
@@ -117,7 +118,7 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut gamma: Vec<f64>) -> S
         }
         if err < best.0 {
             best.0 = err;
-            best.1.copy_from_slice(&gamma);
+            copy(&gamma, &mut best.1);
         }
         if monitor.observe(&gamma, Some(&u)) {
             break;
@@ -125,10 +126,6 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut gamma: Vec<f64>) -> S
     }
     // The box thresholds may lag the final normal impulses: return a point of the cone itself.
     let mut r = best.1;
-    for a in 0..p.n_contacts() {
-        let ra = project_box([r[2 * a], r[2 * a + 1]], p.mu[a]);
-        r[2 * a] = ra[0];
-        r[2 * a + 1] = ra[1];
-    }
+    for_each_item(&mut r[..2 * p.n_contacts()], 2, |a, ra| ra.copy_from_slice(&project_box([ra[0], ra[1]], p.mu[a])));
     monitor.finish(r)
 }

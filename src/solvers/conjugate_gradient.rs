@@ -2,6 +2,7 @@
 //! an optional diagonal (Jacobi) preconditioner: LATIN's linear stage and NLGS–Newton's
 //! matrix-free correction.
 
+use crate::parallel::{all, copy, for_each_value};
 use crate::problem::{dot, norm};
 
 /// The work vectors of one problem size, kept from solve to solve.
@@ -29,19 +30,20 @@ impl ConjugateGradient {
         max_products: usize,
     ) -> usize {
         let mut products = 0;
-        if x.iter().all(|&v| v == 0.0) {
-            self.a_dir.iter_mut().for_each(|v| *v = 0.0);
+        if all(x.len(), |k| x[k] == 0.0) {
+            for_each_value(&mut self.a_dir, |_, v| *v = 0.0);
         } else {
             apply(x, &mut self.a_dir);
             products += 1;
         }
         let precondition = |res: &[f64], out: &mut [f64]| match diag {
-            Some(d) => out.iter_mut().zip(res.iter().zip(d)).for_each(|(o, (r, d))| *o = r / d),
-            None => out.copy_from_slice(res),
+            Some(d) => for_each_value(out, |k, o| *o = res[k] / d[k]),
+            None => copy(res, out),
         };
-        self.res.iter_mut().zip(b.iter().zip(&self.a_dir)).for_each(|(r, (b, a))| *r = b - a);
+        let a_dir = &self.a_dir;
+        for_each_value(&mut self.res, |k, r| *r = b[k] - a_dir[k]);
         precondition(&self.res, &mut self.prec_res);
-        self.dir.copy_from_slice(&self.prec_res);
+        copy(&self.prec_res, &mut self.dir);
         let target = rel_tol * norm(b).max(f64::MIN_POSITIVE);
         let mut rz = dot(&self.res, &self.prec_res);
         while products < max_products {
@@ -55,13 +57,15 @@ impl ConjugateGradient {
                 break;
             }
             let alpha = rz / pap;
-            x.iter_mut().zip(&self.dir).for_each(|(x, d)| *x += alpha * d);
-            self.res.iter_mut().zip(&self.a_dir).for_each(|(r, a)| *r -= alpha * a);
+            let (dir, a_dir) = (&self.dir, &self.a_dir);
+            for_each_value(x, |k, x| *x += alpha * dir[k]);
+            for_each_value(&mut self.res, |k, r| *r -= alpha * a_dir[k]);
             precondition(&self.res, &mut self.prec_res);
             let rz_new = dot(&self.res, &self.prec_res);
             let beta = rz_new / rz;
             rz = rz_new;
-            self.dir.iter_mut().zip(&self.prec_res).for_each(|(d, z)| *d = z + beta * *d);
+            let prec_res = &self.prec_res;
+            for_each_value(&mut self.dir, |k, d| *d = prec_res[k] + beta * *d);
         }
         products
     }

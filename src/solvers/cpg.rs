@@ -8,6 +8,7 @@
 use super::monitor::Monitor;
 use super::stopping::StopReason;
 use super::{SolveReport, SolverKind, SolverOptions};
+use crate::parallel::{copy, count_item_pairs, filled, for_each_item_pair, for_each_value};
 use crate::problem::cone::{project_box, status_of, ContactStatus};
 use crate::problem::{dot, ContactProblem};
 
@@ -22,37 +23,31 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, precondi
     } else {
         vec![1.0; n]
     };
-    let mut status = vec![ContactStatus::Open; nc];
-    for a in 0..nc {
-        let ra = project_box([r[2 * a], r[2 * a + 1]], p.mu[a]);
-        r[2 * a] = ra[0];
-        r[2 * a + 1] = ra[1];
-        status[a] = status_of(ra, p.mu[a]);
-    }
+    let mut status = filled(nc, ContactStatus::Open);
+    for_each_item_pair((&mut r[..n], 2), (&mut status, 1), |a, ra, st| {
+        ra.copy_from_slice(&project_box([ra[0], ra[1]], p.mu[a]));
+        st[0] = status_of([ra[0], ra[1]], p.mu[a]);
+    });
     let mut monitor = Monitor::new(p, opts, kind, &r);
-    let mut neg_grad = vec![0.0; n]; // U = −(W r + q)
-    let mut u = vec![0.0; n];
+    let mut neg_grad = filled(n, 0.0); // U = −(W r + q)
+    let mut u = filled(n, 0.0);
     let residual = |r: &[f64], neg_grad: &mut [f64], u: &mut [f64]| {
         p.velocity_into(r, u);
-        for k in 0..n {
-            neg_grad[k] = -u[k];
-        }
+        let u = &*u;
+        for_each_value(neg_grad, |k, g| *g = -u[k]);
     };
     residual(&r, &mut neg_grad, &mut u);
     monitor.w_products += 1;
 
-    let mut w = vec![0.0; n];
-    let mut z = vec![0.0; n];
-    let mut dir = vec![0.0; n];
-    let mut y = vec![0.0; n];
+    let (mut w, mut z, mut dir, mut y) = (filled(n, 0.0), filled(n, 0.0), filled(n, 0.0), filled(n, 0.0));
     project_gradient(&status, &p.mu, &neg_grad, &scale, &dir, &mut w, &mut z);
-    dir.copy_from_slice(&w);
+    copy(&w, &mut dir);
 
     loop {
         let mut num = dot(&neg_grad, &dir);
         if num <= 0.0 {
             // The conjugated direction is no descent direction: restart from the projected gradient.
-            dir.copy_from_slice(&w);
+            copy(&w, &mut dir);
             num = dot(&neg_grad, &dir);
             if num <= 0.0 {
                 monitor.stop_with(StopReason::Stalled, "stalled: the projected gradient vanished");
@@ -69,23 +64,18 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>, precondi
             break;
         }
         let alpha = num / delta;
-        let mut face_changed = false;
-        for a in 0..nc {
-            let trial = [r[2 * a] + alpha * dir[2 * a], r[2 * a + 1] + alpha * dir[2 * a + 1]];
-            let (ra, st) = project_with_memory(trial, p.mu[a], status[a], dir[2 * a + 1]);
-            r[2 * a] = ra[0];
-            r[2 * a + 1] = ra[1];
-            face_changed |= st != status[a];
-            status[a] = st;
-        }
+        let face_changes = count_item_pairs((&mut r[..n], 2), (&mut status, 1), |a, ra, st| {
+            let trial = [ra[0] + alpha * dir[2 * a], ra[1] + alpha * dir[2 * a + 1]];
+            let (projected, new) = project_with_memory(trial, p.mu[a], st[0], dir[2 * a + 1]);
+            ra.copy_from_slice(&projected);
+            std::mem::replace(&mut st[0], new) != new
+        });
         residual(&r, &mut neg_grad, &mut u);
         monitor.w_products += 1;
         project_gradient(&status, &p.mu, &neg_grad, &scale, &dir, &mut w, &mut z);
         // Conjugacy only holds on one face of the box: restart when the active set moved.
-        let beta = if face_changed { 0.0 } else { -dot(&y, &w) / delta };
-        for k in 0..n {
-            dir[k] = w[k] + beta * z[k];
-        }
+        let beta = if face_changes > 0 { 0.0 } else { -dot(&y, &w) / delta };
+        for_each_value(&mut dir, |k, d| *d = w[k] + beta * z[k]);
         if monitor.observe(&r, Some(&u)) {
             break;
         }
@@ -126,7 +116,8 @@ fn project_gradient(
     w: &mut [f64],
     z: &mut [f64],
 ) {
-    for (a, st) in status.iter().enumerate() {
+    for_each_item_pair((w, 2), (z, 2), |a, w, z| {
+        let st = &status[a];
         let (gn, gt) = (scale[2 * a] * neg_grad[2 * a], scale[2 * a + 1] * neg_grad[2 * a + 1]);
         let (pn, pt) = (dir[2 * a], dir[2 * a + 1]);
         let (wa, za) = match st {
@@ -143,9 +134,7 @@ fn project_gradient(
             }
         };
         let frictionless = mu[a] == 0.0;
-        w[2 * a] = wa[0];
-        w[2 * a + 1] = if frictionless { 0.0 } else { wa[1] };
-        z[2 * a] = za[0];
-        z[2 * a + 1] = if frictionless { 0.0 } else { za[1] };
-    }
+        w.copy_from_slice(&[wa[0], if frictionless { 0.0 } else { wa[1] }]);
+        z.copy_from_slice(&[za[0], if frictionless { 0.0 } else { za[1] }]);
+    });
 }

@@ -6,28 +6,24 @@
 
 use super::monitor::Monitor;
 use super::{SolveReport, SolverKind, SolverOptions};
+use crate::parallel::for_each_item;
 use crate::problem::cone::project_cone;
 use crate::problem::ContactProblem;
 
-/// One Jacobi update of every contact from `u = W r + q` (the CPU mirror of the GPU kernel).
+/// One Jacobi update of every contact from `u = W r + q` (the CPU mirror of the GPU kernel), on
+/// threads when there are many contacts.
 pub fn jacobi_update(r: &mut [f64], u: &[f64], mu: &[f64], step: &[f64]) {
-    for (a, &m) in mu.iter().enumerate() {
-        let (un, ut) = (u[2 * a], u[2 * a + 1]);
-        let x = [r[2 * a] - step[a] * (un + m * ut.abs()), r[2 * a + 1] - step[a] * ut];
-        let ra = project_cone(x, m);
-        r[2 * a] = ra[0];
-        r[2 * a + 1] = ra[1];
-    }
+    for_each_item(&mut r[..2 * mu.len()], 2, |a, ra| {
+        let (un, ut, m) = (u[2 * a], u[2 * a + 1], mu[a]);
+        let x = [ra[0] - step[a] * (un + m * ut.abs()), ra[1] - step[a] * ut];
+        [ra[0], ra[1]] = project_cone(x, m);
+    });
 }
 
 /// Solves from `r` by projected Jacobi.
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>) -> SolveReport {
     let step: Vec<f64> = p.w.diag_blocks().iter().map(|d| opts.jacobi_omega * 2.0 / (d[0] + d[3])).collect();
-    for a in 0..p.n_contacts() {
-        let ra = project_cone([r[2 * a], r[2 * a + 1]], p.mu[a]);
-        r[2 * a] = ra[0];
-        r[2 * a + 1] = ra[1];
-    }
+    for_each_item(&mut r[..2 * p.n_contacts()], 2, |a, ra| ra.copy_from_slice(&project_cone([ra[0], ra[1]], p.mu[a])));
     let mut monitor = Monitor::new(p, opts, SolverKind::Jacobi, &r);
     let mut u = p.velocity(&r);
     monitor.w_products += 1;

@@ -18,6 +18,7 @@
 use super::conjugate_gradient::ConjugateGradient;
 use super::monitor::Monitor;
 use super::{SolveReport, SolverKind, SolverOptions};
+use crate::parallel::{chunked_sum, copied, for_each_item_pair, for_each_value};
 use crate::problem::{norm, spectrum, ContactProblem};
 
 /// LATIN's search-direction factor: given, or chosen by the solver from the problem.
@@ -84,21 +85,17 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>) -> SolveRep
     let cg_diag: Vec<f64> = p.w.diag_blocks().iter().flat_map(|d| [d[0], d[3]]).zip(&k).map(|(d, k)| d + k).collect();
     let apply = |v: &[f64], out: &mut [f64]| {
         p.w.apply(v, out);
-        out.iter_mut().zip(k.iter().zip(v)).for_each(|(o, (k, v))| *o += k * v);
+        for_each_value(out, |i, o| *o += k[i] * v[i]);
     };
     let mut inner_tol: f64 = 1e-2;
     loop {
-        for i in 0..n {
-            rhs[i] = w_hat[i] + k[i] * z_hat[i] - p.q[i];
-        }
+        for_each_value(&mut rhs, |i, x| *x = w_hat[i] + k[i] * z_hat[i] - p.q[i]);
         monitor.w_products += cg.solve(apply, Some(&cg_diag), &rhs, &mut z, inner_tol, 10 * n.max(10) + 1);
-        for i in 0..n {
-            w[i] = w_hat[i] + k[i] * (z_hat[i] - z[i]);
-        }
-        let previous = z_hat.clone();
+        for_each_value(&mut w, |i, x| *x = w_hat[i] + k[i] * (z_hat[i] - z[i]));
+        let previous = copied(&z_hat);
         local_stage(&p.mu, &k, &z, &w, &mut z_hat, &mut w_hat);
         let change = {
-            let d: f64 = z_hat.iter().zip(&previous).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
+            let d = chunked_sum(n, |i| (z_hat[i] - previous[i]) * (z_hat[i] - previous[i])).sqrt();
             d / norm(&z_hat).max(f64::MIN_POSITIVE)
         };
         // The linear stage needs to be only as accurate as the outer iteration is.
@@ -150,16 +147,14 @@ fn automatic_factor(p: &ContactProblem, basis: &[f64], r0: &[f64]) -> (f64, Stri
 
 /// Exact projection of `(z, w)` onto the contact law along the search direction `k`.
 fn local_stage(mu: &[f64], k: &[f64], z: &[f64], w: &[f64], z_hat: &mut [f64], w_hat: &mut [f64]) {
-    for (a, &m) in mu.iter().enumerate() {
+    let n = 2 * mu.len();
+    for_each_item_pair((&mut z_hat[..n], 2), (&mut w_hat[..n], 2), |a, z_hat, w_hat| {
         let (i, j) = (2 * a, 2 * a + 1);
         let sn = z[i] - w[i] / k[i];
         let st = z[j] - w[j] / k[j];
         let zn = sn.max(0.0);
-        let s = m * zn;
-        let zt = crate::problem::cone::clamp_symmetric(st, s);
-        z_hat[i] = zn;
-        z_hat[j] = zt;
-        w_hat[i] = k[i] * (zn - sn);
-        w_hat[j] = k[j] * (zt - st);
-    }
+        let zt = crate::problem::cone::clamp_symmetric(st, mu[a] * zn);
+        z_hat.copy_from_slice(&[zn, zt]);
+        w_hat.copy_from_slice(&[k[i] * (zn - sn), k[j] * (zt - st)]);
+    });
 }

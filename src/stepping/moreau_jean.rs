@@ -22,7 +22,7 @@ use super::checks::{check_overlaps, check_state, pressed_share, state_failure, s
 use super::projection::{end_of_step_gaps, project_positions, targets, GapSummary};
 use super::simulation::{ContactState, Simulation, StepError, StepReport};
 use crate::detection::{Antagonist, Configuration, DetectedContact, Detector};
-use crate::parallel::{all_finite, filled, map_indices, max_over, parallel, CHUNK};
+use crate::parallel::{all_finite, filled, for_each_item_pair, map_indices, max_over, parallel, CHUNK};
 use crate::problem::colouring::Colouring;
 use crate::problem::cone::status_of;
 use crate::problem::matrix_free::Dofs;
@@ -126,32 +126,23 @@ fn free_velocities(world: &World, forces: &[(DVec2, f64)], dofs: Dofs, h: f64) -
     let b = &world.bodies;
     let gravity = world.effects.gravity;
     let (mut v_begin, mut v_free) = (filled(s * b.len(), 0.0), filled(s * b.len(), 0.0));
-    let fill = |first: usize, begin: &mut [f64], free: &mut [f64]| {
-        for (i, (vb, vf)) in begin.chunks_mut(s).zip(free.chunks_mut(s)).enumerate() {
-            let k = first + i;
-            (vb[0], vb[1]) = (b.velocity[k].x, b.velocity[k].y);
-            if dofs.rotation {
-                vb[2] = b.spin[k];
+    for_each_item_pair((&mut v_begin, s), (&mut v_free, s), |k, vb, vf| {
+        (vb[0], vb[1]) = (b.velocity[k].x, b.velocity[k].y);
+        if dofs.rotation {
+            vb[2] = b.spin[k];
+        }
+        vf.copy_from_slice(vb);
+        // Along an axis where a body holds its velocity, nothing changes it.
+        if let Some(g) = gravity {
+            let [mx, my] = b.axis_inv_mass(k);
+            if mx > 0.0 {
+                vf[0] += h * g.x;
             }
-            vf.copy_from_slice(vb);
-            // Along an axis where a body holds its velocity, nothing changes it.
-            if let Some(g) = gravity {
-                let [mx, my] = b.axis_inv_mass(k);
-                if mx > 0.0 {
-                    vf[0] += h * g.x;
-                }
-                if my > 0.0 {
-                    vf[1] += h * g.y;
-                }
+            if my > 0.0 {
+                vf[1] += h * g.y;
             }
         }
-    };
-    match parallel(b.len()) {
-        true => (v_begin.par_chunks_mut(s * CHUNK).zip(v_free.par_chunks_mut(s * CHUNK)))
-            .enumerate()
-            .for_each(|(c, (begin, free))| fill(c * CHUNK, begin, free)),
-        false => fill(0, &mut v_begin, &mut v_free),
-    }
+    });
     // Constant forces of driven bodies (pistons), then a host's forces for this step (see
     // `Simulation::apply_force`).
     for k in b.driven() {
