@@ -208,18 +208,24 @@ fn threaded_nlgs_converges_and_is_the_same_on_two_and_four_threads() {
 #[test]
 fn the_vector_solvers_update_on_threads_and_give_the_same_bits_on_one_two_and_four() {
     // Jacobi, CPG, PCPG, APGD and LATIN update their vectors in chunks on threads above
-    // PARALLEL_MIN contacts; every chunk must do what one thread does.
-    let p = lattice_packing(80, 40, 0.5, 7);
-    assert!(p.n_contacts() > moreau::parallel::PARALLEL_MIN);
-    let start = moreau::problem::residual::error_of(&p, &vec![0.0; 2 * p.n_contacts()]).0;
+    // PARALLEL_MIN contacts; every chunk must do what one thread does. The same problem with
+    // `W` matrix-free (steps) and explicit (files: `moreau solve`).
+    let free = lattice_packing(80, 40, 0.5, 7);
+    assert!(free.n_contacts() > moreau::parallel::PARALLEL_MIN);
+    let mut explicit = free.clone();
+    explicit.w = moreau::problem::Delassus::Sparse(free.w.to_block_sparse());
+    let start = moreau::problem::residual::error_of(&free, &vec![0.0; 2 * free.n_contacts()]).0;
     let opts = SolverOptions { tol: 1e-12, max_iter: 40, ..Default::default() };
     let bits = |r: &moreau::SolveReport| r.r.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-    for kind in [SolverKind::Jacobi, SolverKind::Cpg, SolverKind::Pcpg, SolverKind::Apgd, SolverKind::Latin] {
-        let runs: Vec<_> = [1, 2, 4].iter().map(|&t| on_threads(t, || solve(&p, kind, &opts, None))).collect();
-        assert!(runs[0].error < 0.5 * start, "{kind:?} made no progress: {:.2e} from {start:.2e}", runs[0].error);
-        for (t, run) in [2, 4].iter().zip(&runs[1..]) {
-            assert_eq!(run.iterations, runs[0].iterations, "{kind:?} on {t} threads");
-            assert_eq!(bits(run), bits(&runs[0]), "{kind:?}: {t} threads differ from one");
+    for (p, w) in [(&free, "matrix-free"), (&explicit, "explicit")] {
+        for kind in [SolverKind::Jacobi, SolverKind::Cpg, SolverKind::Pcpg, SolverKind::Apgd, SolverKind::Latin] {
+            let runs: Vec<_> = [1, 2, 4].iter().map(|&t| on_threads(t, || solve(p, kind, &opts, None))).collect();
+            let error = runs[0].error;
+            assert!(error < 0.5 * start, "{kind:?}, {w} W: no progress, {error:.2e} from {start:.2e}");
+            for (t, run) in [2, 4].iter().zip(&runs[1..]) {
+                assert_eq!(run.iterations, runs[0].iterations, "{kind:?}, {w} W, on {t} threads");
+                assert_eq!(bits(run), bits(&runs[0]), "{kind:?}, {w} W: {t} threads differ from one");
+            }
         }
     }
 }

@@ -1,10 +1,8 @@
 //! Explicit `W` as a sparse matrix of 2×2 blocks, rows by contact (block CSR).
 //! Used for problems read from files; row access makes Gauss–Seidel sweeps cheap.
 
-use rayon::prelude::*;
-
 use super::Mat2;
-use crate::parallel::{parallel, CHUNK};
+use crate::parallel::for_each_item;
 
 /// An explicit `W` as a block-compressed sparse row matrix of 2×2 blocks (problem files).
 #[derive(Clone, Debug)]
@@ -118,16 +116,19 @@ impl BlockSparse {
 
     /// `out = W r` (rows on threads for large problems; each row is summed the same way).
     pub fn apply(&self, r: &[f64], out: &mut [f64]) {
-        let rows = |first: usize, out: &mut [f64]| {
-            for (k, o) in out.chunks_mut(2).enumerate() {
-                o.copy_from_slice(&self.row_product(first + k, r));
+        self.apply_plus(r, None, out);
+    }
+
+    /// `out = W r + q`, `q` added to each row as it is made rather than in a pass of its own
+    /// (nothing added without `q`: not even 0, which would turn −0 into +0).
+    pub fn apply_plus(&self, r: &[f64], q: Option<&[f64]>, out: &mut [f64]) {
+        for_each_item(out, 2, |a, o| {
+            let s = self.row_product(a, r);
+            match q {
+                Some(q) => (o[0], o[1]) = (s[0] + q[2 * a], s[1] + q[2 * a + 1]),
+                None => (o[0], o[1]) = (s[0], s[1]),
             }
-        };
-        if parallel(self.n_contacts()) {
-            out.par_chunks_mut(2 * CHUNK).enumerate().for_each(|(c, o)| rows(c * CHUNK, o));
-        } else {
-            rows(0, out);
-        }
+        });
     }
 
     /// The diagonal block `W_aa`.

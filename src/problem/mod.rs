@@ -177,21 +177,17 @@ impl ContactProblem {
     /// [`Self::velocity_into`], returning the bodies' velocities `M⁻¹ Bᵀ r` the product went
     /// through when `W` is matrix-free (its product is that scatter and a gather: the same bits).
     pub fn velocity_keeping_bodies(&self, r: &[f64], u: &mut [f64]) -> Option<Vec<f64>> {
-        let bodies = match &self.w {
+        match &self.w {
             Delassus::MatrixFree(op) => {
                 let v = op.body_velocities(r);
                 op.contact_velocities_plus(&v, Some(&self.q), u);
                 Some(v)
             }
             Delassus::Sparse(s) => {
-                s.apply(r, u);
-                for (ui, qi) in u.iter_mut().zip(&self.q) {
-                    *ui += qi;
-                }
+                s.apply_plus(r, Some(&self.q), u);
                 None
             }
-        };
-        bodies
+        }
     }
 
     /// `u = W r + q` into `u`, `M⁻¹ Bᵀ r` as [`Self::velocity_keeping_bodies`] returns it, and the
