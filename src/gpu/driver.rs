@@ -24,7 +24,7 @@ use super::layout::to_f64;
 use super::operator::{GpuOperator, GpuProblem};
 use super::pool::{BindGroup, GpuBuffer};
 use super::reduce::{partials_len, Dot};
-use crate::problem::cone::project_cone;
+use crate::problem::cone::{project_cone, project_each};
 use crate::problem::residual::{error_of, gap_term};
 use crate::problem::ContactProblem;
 use crate::solvers::stopping::{velocity_scale, JudgedMeasure, StallWatch, StopReason};
@@ -37,16 +37,8 @@ pub fn initial_impulses(p: &ContactProblem, r0: Option<&[f64]>) -> Vec<f64> {
         Some(r) if r.len() == 2 * nc && r.iter().all(|x| x.is_finite()) => r.to_vec(),
         _ => vec![0.0; 2 * nc],
     };
-    land_on_cone(p, &mut r);
+    project_each(&mut r, &p.mu, project_cone);
     r
-}
-
-fn land_on_cone(p: &ContactProblem, r: &mut [f64]) {
-    for a in 0..p.n_contacts() {
-        let ra = project_cone([r[2 * a], r[2 * a + 1]], p.mu[a]);
-        r[2 * a] = ra[0];
-        r[2 * a + 1] = ra[1];
-    }
 }
 
 /// A plateau of the error above this is the method's slow progress, not the f32 floor (f32
@@ -239,7 +231,7 @@ pub fn iterate(
                     };
                     r = to_f64(&impulses);
                     // Judge what would be returned: f32 impulses (and APGD's lagging box) landed on the f64 cone.
-                    land_on_cone(p, &mut r);
+                    project_each(&mut r, &p.mu, project_cone);
                     last_judgement = judge(&r);
                     error = last_judgement.0;
                     checks.judged += 1;
@@ -285,7 +277,7 @@ pub fn iterate(
         true => last_judgement,
         false => {
             r = to_f64(&checker.snapshot(ctx)?);
-            land_on_cone(p, &mut r);
+            project_each(&mut r, &p.mu, project_cone);
             judge(&r)
         }
     };

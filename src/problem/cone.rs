@@ -1,6 +1,7 @@
 //! The Coulomb cone `K_μ = {r : |r_t| ≤ μ r_n}` in 2D: projections and the exact single-contact solve.
 
 use super::Mat2;
+use crate::parallel::for_each_item;
 
 /// State of one contact under the Coulomb law (Siconos/LMGC90 naming differs; we name the sign).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -52,6 +53,12 @@ pub fn project_box(x: [f64; 2], mu: f64) -> [f64; 2] {
     let rn = x[0].max(0.0);
     let s = mu * rn;
     [rn, clamp_symmetric(x[1], s)]
+}
+
+/// Each contact's impulse in `r` replaced by its projection (`project_cone` or `project_box`),
+/// on threads when there are many contacts.
+pub fn project_each(r: &mut [f64], mu: &[f64], project: fn([f64; 2], f64) -> [f64; 2]) {
+    for_each_item(&mut r[..2 * mu.len()], 2, |a, ra| [ra[0], ra[1]] = project([ra[0], ra[1]], mu[a]));
 }
 
 /// Status of an admissible `r` (on the cone) for reporting and CPG's active sets.

@@ -10,7 +10,7 @@ use crate::parallel::{
     any, chunked_sum, chunked_sums, copied, copy, filled, for_each_item, for_each_item_pair, for_each_value,
     map_indices,
 };
-use crate::problem::cone::project_box;
+use crate::problem::cone::{project_box, project_each};
 use crate::problem::residual::problem_error;
 use crate::problem::{dot, norm, ContactProblem};
 
@@ -126,6 +126,6 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut gamma: Vec<f64>) -> S
     }
     // The box thresholds may lag the final normal impulses: return a point of the cone itself.
     let mut r = best.1;
-    for_each_item(&mut r[..2 * p.n_contacts()], 2, |a, ra| ra.copy_from_slice(&project_box([ra[0], ra[1]], p.mu[a])));
+    project_each(&mut r, &p.mu, project_box);
     monitor.finish(r)
 }

@@ -7,7 +7,7 @@
 use super::monitor::Monitor;
 use super::{SolveReport, SolverKind, SolverOptions};
 use crate::parallel::for_each_item;
-use crate::problem::cone::project_cone;
+use crate::problem::cone::{project_cone, project_each};
 use crate::problem::ContactProblem;
 
 /// One Jacobi update of every contact from `u = W r + q` (the CPU mirror of the GPU kernel), on
@@ -23,7 +23,7 @@ pub fn jacobi_update(r: &mut [f64], u: &[f64], mu: &[f64], step: &[f64]) {
 /// Solves from `r` by projected Jacobi.
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, mut r: Vec<f64>) -> SolveReport {
     let step: Vec<f64> = p.w.diag_blocks().iter().map(|d| opts.jacobi_omega * 2.0 / (d[0] + d[3])).collect();
-    for_each_item(&mut r[..2 * p.n_contacts()], 2, |a, ra| ra.copy_from_slice(&project_cone([ra[0], ra[1]], p.mu[a])));
+    project_each(&mut r, &p.mu, project_cone);
     let mut monitor = Monitor::new(p, opts, SolverKind::Jacobi, &r);
     let mut u = p.velocity(&r);
     monitor.w_products += 1;
