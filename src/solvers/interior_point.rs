@@ -7,7 +7,9 @@
 //! keeps `g > 0`, `z > 0` and drives `W r + q + μ|u_t| e_n − Aᵀ z → 0` and `g ∘ z → 0` by
 //! Mehrotra's predictor–corrector. Its Newton matrix is `(I + E) W + D`: `D` the barrier's 2×2
 //! blocks and `E` the derivative of the shift `μ|u_t|` (`μ sgn(u_t)` at row n, column t of a contact),
-//! factorised by sparse LU on `W`'s pattern. Without friction `E = 0` and the matrix is
+//! factorised by an LU without pivoting in the supernodal structure of `W`'s Cholesky
+//! (`pattern_lu`: it fills as the Cholesky does, where a pivoting LU plans for `Jᵀ J`'s
+//! pattern, 5.7–13× more). Without friction `E = 0` and the matrix is
 //! `W + D`, symmetric positive definite however singular `W` is (redundant contacts cost
 //! nothing): a sparse Cholesky, and the iteration is a textbook convex QP solver.
 //!
@@ -22,13 +24,14 @@
 //! reach 1e-12 on the Siconos 2,020- and 7,002-contact files, where from zero they cycle at
 //! 5e-7 and 1.6e-8. The report's notes give each part.
 //!
-//! The factors' sizes are known from the symbolic Cholesky before any numeric work: an LU that
+//! The factors' sizes are known from their symbolic analyses before any numeric work: an LU that
 //! would not fit in half the memory available is not attempted (every step then freezes the
-//! shift; a 980,700-contact lattice needs 3.4 GB instead of 14 GB and more), and a solve whose
-//! Cholesky would not fit stops before its first step (NLGS then goes on), never killed for memory.
+//! shift), and a solve whose Cholesky would not fit stops before its first step (NLGS then goes
+//! on), never killed for memory. A 980,700-contact lattice takes 5.5 GB with the LU.
 
 use super::monitor::Monitor;
-use super::newton::{AcBlocks, DirectJacobian};
+use super::newton::AcBlocks;
+use super::pattern_lu::PatternLu;
 use super::sparse_cholesky::PatternCholesky;
 use super::stopping::StopReason;
 use super::{nlgs, HistoryPoint, SolveReport, SolverKind, SolverOptions};
@@ -47,10 +50,6 @@ const JAMMED: f64 = 0.01;
 const FLOOR: &str = "stalled at the floor of f64 arithmetic: the complementarity gap underflowed";
 /// Iterations without a 1 % gain on the best error after which the solve is stalled.
 const STALL_WINDOW: usize = 50;
-/// Bytes of the coupled Newton matrix's sparse LU per entry of the Cholesky factor on `W`'s
-/// pattern, an upper bound measured with faer's LU (COLAMD, partial pivoting): 5.7× the
-/// Cholesky's bytes at 67,094 contacts, 13× at 500,500 (a lattice); 16× here.
-const LU_BYTES_PER_CHOLESKY_ENTRY: usize = 128;
 /// Bytes of the Cholesky factor and its copy of the matrix per factor entry.
 const CHOLESKY_BYTES_PER_ENTRY: usize = 16;
 
@@ -146,7 +145,7 @@ impl Iterate<'_> {
 enum Factor {
     /// `W + D` (shift frozen), by the Cholesky factor held in the solve's [`PatternCholesky`].
     Symmetric,
-    /// `(I + E) W + D`, by the sparse LU held in the solve's [`DirectJacobian`].
+    /// `(I + E) W + D`, by the sparse LU held in the solve's [`PatternLu`].
     Coupled,
 }
 
@@ -241,11 +240,17 @@ fn solve_with(
         monitor.stop_with(StopReason::Breakdown, why);
         return monitor.finish(r0);
     }
-    let lu_bytes = LU_BYTES_PER_CHOLESKY_ENTRY * entries;
     let mut lu = None;
     if coupled && !p.is_frictionless() {
+        let structure = PatternLu::new(&w);
+        if let Err(e) = &structure {
+            monitor.note(format!(
+                "no sparse LU of the coupled Newton matrix ({e}): every step freezes the friction shift"
+            ));
+        }
+        let lu_bytes = structure.as_ref().map_or(0, PatternLu::bytes);
         match memory.filter(|&m| lu_bytes > m) {
-            None => lu = DirectJacobian::new(w.clone()).ok(),
+            None => lu = structure.ok(),
             Some(memory) => monitor.note(format!(
                 "no sparse LU of the coupled Newton matrix: it would need up to {}, more than the {} it \
                  may use; every step freezes the friction shift (Cholesky)",
@@ -254,6 +259,8 @@ fn solve_with(
             )),
         }
     }
+    // The contact whose row holds each of W's blocks.
+    let owner: Vec<usize> = (0..nc).flat_map(|a| (w.row_ptr[a]..w.row_ptr[a + 1]).map(move |_| a)).collect();
     let diag = p.w.diag_blocks();
     let mean_diag = diag.iter().map(|d| d[0] + d[3]).sum::<f64>() / n.max(1) as f64;
     let m_total: usize = p.mu.iter().map(|&m| if m > 0.0 { 2 } else { 1 }).sum();
@@ -307,9 +314,18 @@ fn solve_with(
         }
         let gap = it.residuals();
         let blocks: Vec<Mat2> = (0..nc).map(|a| it.barrier(a)).collect();
-        let coupled = lu.as_mut().filter(|_| last_step >= JAMMED).is_some_and(|d| {
+        let coupled = lu.as_mut().filter(|_| last_step >= JAMMED).is_some_and(|lu| {
             let jac = coupled_blocks(&it, &blocks);
-            d.factorise(&jac, delta * mean_diag)
+            let eps = delta * mean_diag;
+            // Entry (i, j) of block k of `D_r + D_u W + εI`, the block in contact a's row.
+            lu.factorise(|k, i, j| {
+                let a = owner[k];
+                let (dr, du) = &jac[a];
+                let b = &w.blocks[k];
+                let product = du[2 * i] * b[j] + du[2 * i + 1] * b[2 + j];
+                let diagonal = if w.cols[k] == a { dr[2 * i + j] + if i == j { eps } else { 0.0 } } else { 0.0 };
+                product + diagonal
+            })
         });
         let factor = if coupled {
             Factor::Coupled
@@ -323,7 +339,7 @@ fn solve_with(
             Factor::Symmetric
         };
         let solve = |rhs: &mut [f64]| match &factor {
-            Factor::Coupled => lu.as_ref().is_some_and(|d| d.solve_factorised(rhs)),
+            Factor::Coupled => lu.as_ref().is_some_and(|lu| lu.solve(rhs)),
             Factor::Symmetric => {
                 cholesky.solve(rhs);
                 rhs.iter().all(|x| x.is_finite())
@@ -399,7 +415,7 @@ fn mehrotra_direction(
     target.is_finite() && newton_direction(it, comp, solve, dr, dz)
 }
 
-/// The Newton matrix's blocks in [`DirectJacobian`]'s form `D_r + D_u W`: `D_r` the barrier
+/// The Newton matrix's blocks in the form `D_r + D_u W`: `D_r` the barrier
 /// (a frictionless contact's row t pinned to `dr_t = 0`), `D_u` the identity plus the shift's
 /// derivative `μ sgn(u_t)` from row n to column t.
 fn coupled_blocks(it: &Iterate, blocks: &[Mat2]) -> Vec<AcBlocks> {
@@ -522,7 +538,9 @@ mod tests {
         let opts = SolverOptions { tol: 1e-8, max_iter: 2_000, ..Default::default() };
         let w = p.w.to_block_sparse();
         let entries = PatternCholesky::new(&w).unwrap().factor_entries();
-        let no_lu = solve_with(&p, &opts, zero(&p), true, Some(CHOLESKY_BYTES_PER_ENTRY * entries));
+        let lu_bytes = PatternLu::new(&w).unwrap().bytes();
+        assert!(lu_bytes > CHOLESKY_BYTES_PER_ENTRY * entries, "{lu_bytes} bytes");
+        let no_lu = solve_with(&p, &opts, zero(&p), true, Some(lu_bytes - 1));
         assert!(no_lu.notes.iter().any(|n| n.contains("no sparse LU")), "{:?}", no_lu.notes);
         let frozen = solve_with(&p, &opts, zero(&p), false, None);
         assert_eq!(no_lu.error, frozen.error, "the LU-less solve is the frozen-shift one");

@@ -9,7 +9,7 @@
 //! | APGD | [`apgd`] | Nesterov projected gradient with restart, Tresca box with threshold updates |
 //! | Newton | [`newton`] | semismooth Newton on the Alart–Curnier function, GMRES on `W` products (prototype) |
 //! | NLGS–Newton | [`truncated_newton`] | NLGS sweeps, each followed by a truncated Newton correction of the Tresca problem (sparse Cholesky) |
-//! | interior point | [`interior_point`] | primal–dual interior point on De Saxcé's form of the wedge cones (sparse LU / Cholesky), NLGS sweeps from its iterate when it stops short |
+//! | interior point | [`interior_point`] | primal–dual interior point on De Saxcé's form of the wedge cones (LU on the Cholesky's structure, `pattern_lu.rs` / Cholesky), NLGS sweeps from its iterate when it stops short |
 //!
 //! Every solver is judged by the same f64 error ([`crate::problem::residual`]) through a
 //! [`monitor::Monitor`], and returns a [`SolveReport`].
@@ -26,6 +26,7 @@ pub mod lmgc_criteria;
 pub mod monitor;
 pub mod newton;
 pub mod nlgs;
+mod pattern_lu;
 mod recycled;
 mod sparse_cholesky;
 pub mod stopping;
