@@ -10,7 +10,10 @@
 //!
 //! Left-looking: a supernode gathers the updates of the supernodes below it in the elimination
 //! tree (`L_d U_d` restricted to its rows and columns, dense products), then factorises its
-//! diagonal block (recursive blocked LU) and solves its off-diagonal panels.
+//! diagonal block (recursive blocked LU) and solves its off-diagonal panels. Disjoint subtrees
+//! run side by side on threads, each supernode's arithmetic the same on any thread: the factor
+//! is the same bits for any thread count. The supernodes above them (the top separators, about
+//! half the work on a 67,094-contact step) run on one.
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::{
@@ -23,6 +26,9 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::SymbolicSparseColMatRef;
 use faer::{Accum, MatMut, MatRef, Par, Side};
+use rayon::prelude::*;
+
+use crate::parallel::split_lengths;
 
 use crate::problem::BlockSparse;
 
@@ -35,13 +41,27 @@ const REFINEMENTS: usize = 1;
 pub(crate) struct PatternLu {
     /// `perm[new] = old` (AMD).
     perm: Vec<usize>,
-    /// The permuted matrix `P J Pᵀ` by columns; `source[e]` is entry e's place in `w.blocks`
-    /// (block, row i and column j within it), `transposed[e]` the entry at the mirrored position.
+    matrix: Permuted,
+    /// Entry e's place in `w.blocks`: block, row i and column j within it.
+    source: Vec<(usize, usize, usize)>,
+    sn: Supernodes,
+    l: Vec<f64>,
+    ut: Vec<f64>,
+    /// Whether `l` and `ut` hold the factor of the last factorisation.
+    factorised: bool,
+}
+
+/// The permuted matrix `P J Pᵀ` by columns; `transposed[e]` is the entry at the position mirror
+/// to entry e's.
+struct Permuted {
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
-    source: Vec<(usize, usize, usize)>,
     transposed: Vec<usize>,
     values: Vec<f64>,
+}
+
+/// The factor's structure.
+struct Supernodes {
     /// Supernode s holds columns `begin[s]..begin[s + 1]`, its rows below them
     /// `rows[rows_ptr[s]..rows_ptr[s + 1]]` (sorted).
     begin: Vec<usize>,
@@ -54,10 +74,10 @@ pub(crate) struct PatternLu {
     /// below) at `l_ptr[s]`, and `Uᵀ`'s rows right of the diagonal block at `ut_ptr[s]`.
     l_ptr: Vec<usize>,
     ut_ptr: Vec<usize>,
-    l: Vec<f64>,
-    ut: Vec<f64>,
-    /// Whether `l` and `ut` hold the factor of the last factorisation.
-    factorised: bool,
+    /// Subtrees of the elimination tree factorised side by side on threads (`first..=last`: the
+    /// supernodes are in postorder, so a subtree is a range), then the supernodes above them.
+    subtrees: Vec<(usize, usize)>,
+    above: Vec<usize>,
 }
 
 impl PatternLu {
@@ -120,7 +140,7 @@ impl PatternLu {
         entries.iter().for_each(|&(col, _, _)| col_ptr[col + 1] += 1);
         (0..n).for_each(|c| col_ptr[c + 1] += col_ptr[c]);
         let row_idx: Vec<usize> = entries.iter().map(|e| e.1).collect();
-        let source = entries.iter().map(|e| e.2).collect();
+        let source: Vec<_> = entries.iter().map(|e| e.2).collect();
         let find = |row: usize, col: usize| {
             let range = col_ptr[col]..col_ptr[col + 1];
             range.start + row_idx[range].binary_search(&row).expect("symmetric pattern")
@@ -155,137 +175,61 @@ impl PatternLu {
             l_ptr.push(l_ptr[s] + (ns + np) * ns);
             ut_ptr.push(ut_ptr[s] + np * ns);
         }
+        let (subtrees, above) = thread_plan(&rows, &rows_ptr, &owner, &l_ptr, &begin);
         let values = vec![0.0; row_idx.len()];
-        Ok(Self {
-            perm,
-            col_ptr,
-            row_idx,
-            source,
-            transposed,
-            values,
-            begin,
-            rows_ptr,
-            rows,
-            updates_ptr,
-            updates,
-            l_ptr,
-            ut_ptr,
-            l: Vec::new(),
-            ut: Vec::new(),
-            factorised: false,
-        })
+        let matrix = Permuted { col_ptr, row_idx, transposed, values };
+        let sn = Supernodes { begin, rows_ptr, rows, updates_ptr, updates, l_ptr, ut_ptr, subtrees, above };
+        Ok(Self { perm, matrix, source, sn, l: Vec::new(), ut: Vec::new(), factorised: false })
     }
 
     /// Entries of the factor (`L` and `U` together), known before any numeric factorisation.
     pub(crate) fn factor_entries(&self) -> usize {
-        self.l_ptr.last().copied().unwrap_or(0) + self.ut_ptr.last().copied().unwrap_or(0)
+        self.sn.l_ptr.last().copied().unwrap_or(0) + self.sn.ut_ptr.last().copied().unwrap_or(0)
     }
 
     /// Bytes the factorisations will hold: the factor's values and the matrix's.
     pub(crate) fn bytes(&self) -> usize {
-        std::mem::size_of::<f64>() * (self.factor_entries() + self.values.len())
+        std::mem::size_of::<f64>() * (self.factor_entries() + self.matrix.values.len())
     }
 
     /// Factorises the matrix whose entry at unpermuted (row, col) is `entry(k, i, j)`, the
     /// value at row i, column j of the block `w.blocks[k]` it lies in; false (and no factor)
     /// when a pivot is zero or not finite.
     pub(crate) fn factorise(&mut self, entry: impl Fn(usize, usize, usize) -> f64) -> bool {
-        for (v, &(k, i, j)) in self.values.iter_mut().zip(&self.source) {
+        for (v, &(k, i, j)) in self.matrix.values.iter_mut().zip(&self.source) {
             *v = entry(k, i, j);
         }
         // Each panel is zeroed as its supernode starts, while it stays in cache.
-        self.l.resize(*self.l_ptr.last().unwrap_or(&0), 0.0);
-        self.ut.resize(*self.ut_ptr.last().unwrap_or(&0), 0.0);
+        self.l.resize(*self.sn.l_ptr.last().unwrap_or(&0), 0.0);
+        self.ut.resize(*self.sn.ut_ptr.last().unwrap_or(&0), 0.0);
         self.factorised = self.factorise_numeric();
         self.factorised
     }
 
+    /// The subtrees on threads (each writing its own range of the factor), then the supernodes
+    /// above them in order. A supernode's arithmetic does not depend on which thread runs it:
+    /// the factor is the same bits for any number of threads.
     fn factorise_numeric(&mut self) -> bool {
-        let n = self.perm.len();
-        let mut local = vec![usize::MAX; n];
-        let (mut tmp, mut at) = (Vec::new(), Vec::new());
-        for s in 0..self.begin.len() - 1 {
-            let (s0, s1) = (self.begin[s], self.begin[s + 1]);
-            let ns = s1 - s0;
-            let pattern = &self.rows[self.rows_ptr[s]..self.rows_ptr[s + 1]];
-            let np = pattern.len();
-            let ld = ns + np;
-            for (r, &row) in pattern.iter().enumerate() {
-                local[row] = ns + r;
-            }
-            let (l_done, l_rest) = self.l.split_at_mut(self.l_ptr[s]);
-            let (ut_done, ut_rest) = self.ut.split_at_mut(self.ut_ptr[s]);
-            let (ls, uts) = (&mut l_rest[..ld * ns], &mut ut_rest[..np * ns]);
-            ls.fill(0.0);
-            uts.fill(0.0);
-            // The matrix's own entries: column j's rows from s0 down, row j's columns past s1.
-            for j in s0..s1 {
-                let col = j - s0;
-                for e in self.col_ptr[j]..self.col_ptr[j + 1] {
-                    let i = self.row_idx[e];
-                    if i >= s1 {
-                        ls[local[i] + col * ld] += self.values[e];
-                        uts[local[i] - ns + col * np] += self.values[self.transposed[e]];
-                    } else if i >= s0 {
-                        ls[i - s0 + col * ld] += self.values[e];
-                    }
-                }
-            }
-            // The updates of the supernodes below: A_s −= L_d U_d on s's rows and columns.
-            for &d in &self.updates[self.updates_ptr[s]..self.updates_ptr[s + 1]] {
-                let nd = self.begin[d + 1] - self.begin[d];
-                let d_rows = &self.rows[self.rows_ptr[d]..self.rows_ptr[d + 1]];
-                let start = d_rows.partition_point(|&r| r < s0);
-                let mid = d_rows[start..].partition_point(|&r| r < s1);
-                let below = d_rows.len() - start - mid;
-                let ld_d =
-                    MatRef::from_column_major_slice(&l_done[self.l_ptr[d]..self.l_ptr[d + 1]], nd + d_rows.len(), nd);
-                let ut_d =
-                    MatRef::from_column_major_slice(&ut_done[self.ut_ptr[d]..self.ut_ptr[d + 1]], d_rows.len(), nd);
-                // Where d's rows from s0 on land in s's panels (rows of L, columns of both).
-                at.clear();
-                at.extend(d_rows[start..].iter().map(|&row| if row < s1 { row - s0 } else { local[row] }));
-                let rows = mid + below;
-
-                tmp.clear();
-                tmp.resize(rows * mid, 0.0);
-                let t = MatMut::from_column_major_slice_mut(&mut tmp[..], rows, mid);
-                let ut_mid = ut_d.subrows(start, mid).transpose();
-                matmul(t, Accum::Replace, ld_d.subrows(nd + start, rows), ut_mid, 1.0, Par::Seq);
-                for c in 0..mid {
-                    let target = &mut ls[at[c] * ld..(at[c] + 1) * ld];
-                    for (&a, &v) in at.iter().zip(&tmp[c * rows..(c + 1) * rows]) {
-                        target[a] -= v;
-                    }
-                }
-                if below > 0 {
-                    tmp.clear();
-                    tmp.resize(below * mid, 0.0);
-                    let t = MatMut::from_column_major_slice_mut(&mut tmp[..], below, mid);
-                    let l_mid = ld_d.subrows(nd + start, mid).transpose();
-                    matmul(t, Accum::Replace, ut_d.subrows(start + mid, below), l_mid, 1.0, Par::Seq);
-                    for c in 0..mid {
-                        let target = &mut uts[at[c] * np..(at[c] + 1) * np];
-                        for (&a, &v) in at[mid..].iter().zip(&tmp[c * below..(c + 1) * below]) {
-                            target[a - ns] -= v;
-                        }
-                    }
-                }
-            }
-            let ls = MatMut::from_column_major_slice_mut(ls, ld, ns);
-            let mut uts = MatMut::from_column_major_slice_mut(uts, np, ns);
-            let (mut diag, mut low) = ls.split_at_row_mut(ns);
-            if !lu_in_place(diag.rb_mut()) {
-                return false;
-            }
-            // L below = A below U⁻¹; Uᵀ right = (L⁻¹ A right)ᵀ.
-            solve_lower_triangular_in_place(diag.rb().transpose(), low.rb_mut().transpose_mut(), Par::Seq);
-            solve_unit_lower_triangular_in_place(diag.rb(), uts.rb_mut().transpose_mut(), Par::Seq);
-            for &row in pattern {
-                local[row] = usize::MAX;
-            }
+        let (sn, matrix, n) = (&self.sn, &self.matrix, self.perm.len());
+        let (mut l_lengths, mut ut_lengths, mut next) = (Vec::new(), Vec::new(), 0);
+        for &(first, last) in &sn.subtrees {
+            l_lengths.extend([sn.l_ptr[first] - sn.l_ptr[next], sn.l_ptr[last + 1] - sn.l_ptr[first]]);
+            ut_lengths.extend([sn.ut_ptr[first] - sn.ut_ptr[next], sn.ut_ptr[last + 1] - sn.ut_ptr[first]]);
+            next = last + 1;
         }
-        true
+        let l_parts = split_lengths(&mut self.l, l_lengths).into_iter().skip(1).step_by(2);
+        let ut_parts = split_lengths(&mut self.ut, ut_lengths).into_iter().skip(1).step_by(2);
+        let tasks: Vec<_> = sn.subtrees.iter().zip(l_parts.zip(ut_parts)).collect();
+        let factorised = tasks.into_par_iter().map(|(&(first, last), (l, ut))| {
+            let mut scratch = Scratch::new(n);
+            let from = (sn.l_ptr[first], sn.ut_ptr[first]);
+            (first..=last).all(|s| factor_supernode(sn, matrix, s, (l, ut), from, &mut scratch))
+        });
+        if !factorised.collect::<Vec<bool>>().into_iter().all(|ok| ok) {
+            return false;
+        }
+        let mut scratch = Scratch::new(n);
+        sn.above.iter().all(|&s| factor_supernode(sn, matrix, s, (&mut self.l, &mut self.ut), (0, 0), &mut scratch))
     }
 
     /// Solves in place with the last factor; false (and `x` as it was) when there is none or the
@@ -303,8 +247,8 @@ impl PatternLu {
         for _ in 0..REFINEMENTS {
             let mut residual = b.clone();
             for (j, &yj) in y.iter().enumerate() {
-                for e in self.col_ptr[j]..self.col_ptr[j + 1] {
-                    residual[self.row_idx[e]] -= self.values[e] * yj;
+                for e in self.matrix.col_ptr[j]..self.matrix.col_ptr[j + 1] {
+                    residual[self.matrix.row_idx[e]] -= self.matrix.values[e] * yj;
                 }
             }
             self.solve_permuted(&mut residual);
@@ -322,12 +266,12 @@ impl PatternLu {
     /// `y = (P J Pᵀ)⁻¹ y` by the factor's triangular solves.
     fn solve_permuted(&self, y: &mut [f64]) {
         let mut gathered = Vec::new();
-        let n_super = self.begin.len() - 1;
+        let n_super = self.sn.begin.len() - 1;
         for s in 0..n_super {
-            let (s0, s1) = (self.begin[s], self.begin[s + 1]);
-            let (ns, pattern) = (s1 - s0, &self.rows[self.rows_ptr[s]..self.rows_ptr[s + 1]]);
+            let (s0, s1) = (self.sn.begin[s], self.sn.begin[s + 1]);
+            let (ns, pattern) = (s1 - s0, &self.sn.rows[self.sn.rows_ptr[s]..self.sn.rows_ptr[s + 1]]);
             let ld = ns + pattern.len();
-            let ls = &self.l[self.l_ptr[s]..self.l_ptr[s + 1]];
+            let ls = &self.l[self.sn.l_ptr[s]..self.sn.l_ptr[s + 1]];
             solve_unit_lower_triangular_in_place(
                 MatRef::from_column_major_slice_with_stride(ls, ns, ns, ld),
                 MatMut::from_column_major_slice_mut(&mut y[s0..s1], ns, 1),
@@ -341,10 +285,10 @@ impl PatternLu {
             }
         }
         for s in (0..n_super).rev() {
-            let (s0, s1) = (self.begin[s], self.begin[s + 1]);
-            let (ns, pattern) = (s1 - s0, &self.rows[self.rows_ptr[s]..self.rows_ptr[s + 1]]);
+            let (s0, s1) = (self.sn.begin[s], self.sn.begin[s + 1]);
+            let (ns, pattern) = (s1 - s0, &self.sn.rows[self.sn.rows_ptr[s]..self.sn.rows_ptr[s + 1]]);
             let (ld, np) = (ns + pattern.len(), pattern.len());
-            let uts = &self.ut[self.ut_ptr[s]..self.ut_ptr[s + 1]];
+            let uts = &self.ut[self.sn.ut_ptr[s]..self.sn.ut_ptr[s + 1]];
             gathered.clear();
             gathered.extend(pattern.iter().map(|&row| y[row]));
             for c in 0..ns {
@@ -352,12 +296,183 @@ impl PatternLu {
                 y[s0 + c] -= right;
             }
             solve_upper_triangular_in_place(
-                MatRef::from_column_major_slice_with_stride(&self.l[self.l_ptr[s]..self.l_ptr[s + 1]], ns, ns, ld),
+                MatRef::from_column_major_slice_with_stride(
+                    &self.l[self.sn.l_ptr[s]..self.sn.l_ptr[s + 1]],
+                    ns,
+                    ns,
+                    ld,
+                ),
                 MatMut::from_column_major_slice_mut(&mut y[s0..s1], ns, 1),
                 Par::Seq,
             );
         }
     }
+}
+
+/// Per-thread workspace of a factorisation: where the rows of the supernode being factorised
+/// lie in its panel, and the dense products of one update.
+struct Scratch {
+    local: Vec<usize>,
+    product: Vec<f64>,
+    at: Vec<usize>,
+}
+
+impl Scratch {
+    fn new(n: usize) -> Self {
+        Self { local: vec![usize::MAX; n], product: Vec::new(), at: Vec::new() }
+    }
+}
+
+/// Factorises supernode s, whose descendants are factorised: `l` and `ut` hold the factor's
+/// values from offsets `from` on (supernode s's descendants and s itself among them).
+fn factor_supernode(
+    sn: &Supernodes,
+    matrix: &Permuted,
+    s: usize,
+    (l, ut): (&mut [f64], &mut [f64]),
+    (l_from, ut_from): (usize, usize),
+    scratch: &mut Scratch,
+) -> bool {
+    let Scratch { local, product, at } = scratch;
+    let (s0, s1) = (sn.begin[s], sn.begin[s + 1]);
+    let ns = s1 - s0;
+    let pattern = &sn.rows[sn.rows_ptr[s]..sn.rows_ptr[s + 1]];
+    let np = pattern.len();
+    let ld = ns + np;
+    for (r, &row) in pattern.iter().enumerate() {
+        local[row] = ns + r;
+    }
+    let (l_done, l_rest) = l.split_at_mut(sn.l_ptr[s] - l_from);
+    let (ut_done, ut_rest) = ut.split_at_mut(sn.ut_ptr[s] - ut_from);
+    let (ls, uts) = (&mut l_rest[..ld * ns], &mut ut_rest[..np * ns]);
+    ls.fill(0.0);
+    uts.fill(0.0);
+    // The matrix's own entries: column j's rows from s0 down, row j's columns past s1.
+    for j in s0..s1 {
+        let col = j - s0;
+        for e in matrix.col_ptr[j]..matrix.col_ptr[j + 1] {
+            let i = matrix.row_idx[e];
+            if i >= s1 {
+                ls[local[i] + col * ld] += matrix.values[e];
+                uts[local[i] - ns + col * np] += matrix.values[matrix.transposed[e]];
+            } else if i >= s0 {
+                ls[i - s0 + col * ld] += matrix.values[e];
+            }
+        }
+    }
+    // The updates of the supernodes below: A_s −= L_d U_d on s's rows and columns.
+    for &d in &sn.updates[sn.updates_ptr[s]..sn.updates_ptr[s + 1]] {
+        let nd = sn.begin[d + 1] - sn.begin[d];
+        let d_rows = &sn.rows[sn.rows_ptr[d]..sn.rows_ptr[d + 1]];
+        let start = d_rows.partition_point(|&r| r < s0);
+        let mid = d_rows[start..].partition_point(|&r| r < s1);
+        let below = d_rows.len() - start - mid;
+        let l_d = &l_done[sn.l_ptr[d] - l_from..sn.l_ptr[d + 1] - l_from];
+        let ld_d = MatRef::from_column_major_slice(l_d, nd + d_rows.len(), nd);
+        let ut_d = &ut_done[sn.ut_ptr[d] - ut_from..sn.ut_ptr[d + 1] - ut_from];
+        let ut_d = MatRef::from_column_major_slice(ut_d, d_rows.len(), nd);
+        // Where d's rows from s0 on land in s's panels (rows of L, columns of both).
+        at.clear();
+        at.extend(d_rows[start..].iter().map(|&row| if row < s1 { row - s0 } else { local[row] }));
+        let rows = mid + below;
+
+        product.clear();
+        product.resize(rows * mid, 0.0);
+        let t = MatMut::from_column_major_slice_mut(&mut product[..], rows, mid);
+        let ut_mid = ut_d.subrows(start, mid).transpose();
+        matmul(t, Accum::Replace, ld_d.subrows(nd + start, rows), ut_mid, 1.0, Par::Seq);
+        for c in 0..mid {
+            let target = &mut ls[at[c] * ld..(at[c] + 1) * ld];
+            for (&a, &v) in at.iter().zip(&product[c * rows..(c + 1) * rows]) {
+                target[a] -= v;
+            }
+        }
+        if below > 0 {
+            product.clear();
+            product.resize(below * mid, 0.0);
+            let t = MatMut::from_column_major_slice_mut(&mut product[..], below, mid);
+            let l_mid = ld_d.subrows(nd + start, mid).transpose();
+            matmul(t, Accum::Replace, ut_d.subrows(start + mid, below), l_mid, 1.0, Par::Seq);
+            for c in 0..mid {
+                let target = &mut uts[at[c] * np..(at[c] + 1) * np];
+                for (&a, &v) in at[mid..].iter().zip(&product[c * below..(c + 1) * below]) {
+                    target[a - ns] -= v;
+                }
+            }
+        }
+    }
+    for &row in pattern {
+        local[row] = usize::MAX;
+    }
+    let ls = MatMut::from_column_major_slice_mut(ls, ld, ns);
+    let mut uts = MatMut::from_column_major_slice_mut(uts, np, ns);
+    let (mut diag, mut low) = ls.split_at_row_mut(ns);
+    if !lu_in_place(diag.rb_mut()) {
+        return false;
+    }
+    // L below = A below U⁻¹; Uᵀ right = (L⁻¹ A right)ᵀ.
+    solve_lower_triangular_in_place(diag.rb().transpose(), low.rb_mut().transpose_mut(), Par::Seq);
+    solve_unit_lower_triangular_in_place(diag.rb(), uts.rb_mut().transpose_mut(), Par::Seq);
+    true
+}
+
+/// Subtrees of at most this share of the factorisation's work are not split further.
+const SUBTREE_SHARE: f64 = 1.0 / 16.0;
+/// Below this work (about the flops of the dense products) a factorisation stays on one thread.
+const PARALLEL_WORK: f64 = 1e7;
+
+/// The subtrees factorised on threads (`first..=last`), and the supernodes above them in order.
+/// The plan depends on the structure alone, never on the thread count. The elimination tree
+/// is split from its roots down, the heaviest subtree first, until each holds at most
+/// [`SUBTREE_SHARE`] of the work; a structure not in postorder, or too small to pay for tasks,
+/// runs in order on one thread.
+fn thread_plan(
+    rows: &[usize],
+    rows_ptr: &[usize],
+    owner: &[usize],
+    l_ptr: &[usize],
+    begin: &[usize],
+) -> (Vec<(usize, usize)>, Vec<usize>) {
+    let n_super = begin.len() - 1;
+    let in_order = (Vec::new(), (0..n_super).collect());
+    let parent: Vec<Option<usize>> =
+        (0..n_super).map(|s| rows[rows_ptr[s]..rows_ptr[s + 1]].first().map(|&r| owner[r])).collect();
+    let (mut first, mut size, mut work) =
+        ((0..n_super).collect::<Vec<_>>(), vec![1usize; n_super], vec![0.0f64; n_super]);
+    let mut children = vec![Vec::new(); n_super];
+    for s in 0..n_super {
+        work[s] += ((l_ptr[s + 1] - l_ptr[s]) * (begin[s + 1] - begin[s])) as f64;
+        if let Some(p) = parent[s] {
+            if p <= s {
+                return in_order;
+            }
+            first[p] = first[p].min(first[s]);
+            size[p] += size[s];
+            work[p] += work[s];
+            children[p].push(s);
+        }
+    }
+    if (0..n_super).any(|s| size[s] != s - first[s] + 1) {
+        return in_order;
+    }
+    let total: f64 = (0..n_super).filter(|&s| parent[s].is_none()).map(|s| work[s]).sum();
+    if total < PARALLEL_WORK {
+        return in_order;
+    }
+    let mut frontier: Vec<usize> = (0..n_super).filter(|&s| parent[s].is_none()).collect();
+    let mut above = Vec::new();
+    while let Some(heaviest) = (0..frontier.len()).max_by(|&a, &b| work[frontier[a]].total_cmp(&work[frontier[b]])) {
+        let s = frontier[heaviest];
+        if work[s] <= SUBTREE_SHARE * total || children[s].is_empty() {
+            break;
+        }
+        frontier.swap_remove(heaviest);
+        above.push(s);
+        frontier.extend(&children[s]);
+    }
+    frontier.sort_unstable();
+    above.sort_unstable();
+    (frontier.into_iter().map(|s| (first[s], s)).collect(), above)
 }
 
 /// `A = L U` in place without pivoting (`L` unit lower, `U` upper); false when a pivot is zero
@@ -456,5 +571,31 @@ mod tests {
         }));
         let mut x = vec![1.0; 2 * w.n_contacts()];
         assert!(!lu.solve(&mut x) && x.iter().all(|&v| v == 1.0));
+    }
+
+    /// Subtrees factorised side by side on threads give the factor that one thread gets
+    /// supernode by supernode in order, to the bit (a lattice large enough to be split).
+    #[test]
+    fn subtrees_on_threads_give_the_factor_of_one_thread_in_order() {
+        let p = lattice_packing(80, 40, 0.5, 3);
+        let w = p.w.to_block_sparse();
+        let mut split = PatternLu::new(&w).unwrap();
+        assert!(split.sn.subtrees.len() > 1, "{} subtrees", split.sn.subtrees.len());
+        let mut in_order = PatternLu::new(&w).unwrap();
+        in_order.sn.subtrees.clear();
+        in_order.sn.above = (0..in_order.sn.begin.len() - 1).collect();
+        let owner: Vec<usize> =
+            (0..w.n_contacts()).flat_map(|a| (w.row_ptr[a]..w.row_ptr[a + 1]).map(move |_| a)).collect();
+        let value = |k: usize, i: usize, j: usize| {
+            let b = w.blocks[k];
+            b[2 * i + j]
+                + if i == 0 { 0.3 * b[2 + j] } else { 0.0 }
+                + if w.cols[k] == owner[k] && i == j { 0.2 } else { 0.0 }
+        };
+        let pool = crate::parallel::thread_pool(2).unwrap();
+        assert!(pool.install(|| split.factorise(value)));
+        assert!(in_order.factorise(value));
+        assert!(split.l.iter().zip(&in_order.l).all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert!(split.ut.iter().zip(&in_order.ut).all(|(a, b)| a.to_bits() == b.to_bits()));
     }
 }
