@@ -220,11 +220,13 @@ impl PatternLu {
         let l_parts = split_lengths(&mut self.l, l_lengths).into_iter().skip(1).step_by(2);
         let ut_parts = split_lengths(&mut self.ut, ut_lengths).into_iter().skip(1).step_by(2);
         let tasks: Vec<_> = sn.subtrees.iter().zip(l_parts.zip(ut_parts)).collect();
-        let factorised = tasks.into_par_iter().map(|(&(first, last), (l, ut))| {
-            let mut scratch = Scratch::new(n);
-            let from = (sn.l_ptr[first], sn.ut_ptr[first]);
-            (first..=last).all(|s| factor_supernode(sn, matrix, s, (l, ut), from, &mut scratch))
-        });
+        let factorised = tasks.into_par_iter().map_init(
+            || Scratch::new(n),
+            |scratch, (&(first, last), (l, ut))| {
+                let from = (sn.l_ptr[first], sn.ut_ptr[first]);
+                (first..=last).all(|s| factor_supernode(sn, matrix, s, (l, ut), from, scratch))
+            },
+        );
         if !factorised.collect::<Vec<bool>>().into_iter().all(|ok| ok) {
             return false;
         }
