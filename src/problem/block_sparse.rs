@@ -101,6 +101,11 @@ impl BlockSparse {
         self.blocks.len()
     }
 
+    /// The block row (contact) of each stored block, in storage order.
+    pub fn block_rows(&self) -> Vec<usize> {
+        (0..self.n_contacts()).flat_map(|a| (self.row_ptr[a]..self.row_ptr[a + 1]).map(move |_| a)).collect()
+    }
+
     /// `(W r)_a`.
     #[inline]
     pub fn row_product(&self, a: usize, r: &[f64]) -> [f64; 2] {

@@ -259,8 +259,7 @@ fn solve_with(
             )),
         }
     }
-    // The contact whose row holds each of W's blocks.
-    let owner: Vec<usize> = (0..nc).flat_map(|a| (w.row_ptr[a]..w.row_ptr[a + 1]).map(move |_| a)).collect();
+    let owner = w.block_rows();
     let diag = p.w.diag_blocks();
     let mean_diag = diag.iter().map(|d| d[0] + d[3]).sum::<f64>() / n.max(1) as f64;
     let m_total: usize = p.mu.iter().map(|&m| if m > 0.0 { 2 } else { 1 }).sum();

@@ -28,6 +28,7 @@ use faer::sparse::SymbolicSparseColMatRef;
 use faer::{Accum, MatMut, MatRef, Par, Side};
 use rayon::prelude::*;
 
+use super::sparse_cholesky::symmetric_scalar_pattern;
 use crate::parallel::split_lengths;
 
 use crate::problem::BlockSparse;
@@ -85,18 +86,8 @@ impl PatternLu {
     pub(crate) fn new(w: &BlockSparse) -> Result<Self, String> {
         let nc = w.n_contacts();
         let n = 2 * nc;
-        // Column 2c + j of the unpermuted matrix: rows 2a + i of the blocks (c, a) of row c, read
-        // transposed (W's pattern is symmetric); the value is block (a, c)'s, found below.
-        let (mut col_ptr0, mut row_idx0) = (vec![0usize], Vec::new());
-        for c in 0..nc {
-            for _ in 0..2 {
-                for k in w.row_ptr[c]..w.row_ptr[c + 1] {
-                    row_idx0.push(2 * w.cols[k]);
-                    row_idx0.push(2 * w.cols[k] + 1);
-                }
-                col_ptr0.push(row_idx0.len());
-            }
-        }
+        // The unpermuted pattern; an entry's value is block (a, c)'s, found below.
+        let (col_ptr0, row_idx0, _) = symmetric_scalar_pattern(w);
         let pattern = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr0, None, &row_idx0);
         let params = CholeskySymbolicParams {
             supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
@@ -536,7 +527,7 @@ mod tests {
             }
             v
         };
-        let owner: Vec<usize> = (0..nc).flat_map(|a| (w.row_ptr[a]..w.row_ptr[a + 1]).map(move |_| a)).collect();
+        let owner = w.block_rows();
         assert!(lu.factorise(|k, i, j| value(owner[k], k, i, j)));
         let b: Vec<f64> = (0..2 * nc).map(|i| ((i * 7919) % 13) as f64 - 6.0).collect();
         let mut x = b.clone();
@@ -586,8 +577,7 @@ mod tests {
         let mut in_order = PatternLu::new(&w).unwrap();
         in_order.sn.subtrees.clear();
         in_order.sn.above = (0..in_order.sn.begin.len() - 1).collect();
-        let owner: Vec<usize> =
-            (0..w.n_contacts()).flat_map(|a| (w.row_ptr[a]..w.row_ptr[a + 1]).map(move |_| a)).collect();
+        let owner = w.block_rows();
         let value = |k: usize, i: usize, j: usize| {
             let b = w.blocks[k];
             b[2 * i + j]

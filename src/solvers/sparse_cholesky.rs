@@ -13,6 +13,25 @@ use crate::problem::BlockSparse;
 /// The largest regularisation [`PatternCholesky::factorise_regularised`] tries.
 const MAX_DELTA: f64 = 1e-2;
 
+/// `W`'s scalar pattern by columns (`col_ptr`, `row_idx`), read from its block rows (`W` is
+/// symmetric): column 2c + j holds rows 2a + i of the blocks (c, a) of row c, and `source` gives
+/// each entry's block and place in it, `W[2a+i, 2c+j] = W(c, a)[2j + i]`.
+pub(crate) fn symmetric_scalar_pattern(w: &BlockSparse) -> (Vec<usize>, Vec<usize>, Vec<(usize, usize)>) {
+    let (mut col_ptr, mut row_idx, mut source) = (vec![0usize], Vec::new(), Vec::new());
+    for c in 0..w.n_contacts() {
+        for j in 0..2 {
+            for k in w.row_ptr[c]..w.row_ptr[c + 1] {
+                for i in 0..2 {
+                    row_idx.push(2 * w.cols[k] + i);
+                    source.push((k, 2 * j + i));
+                }
+            }
+            col_ptr.push(row_idx.len());
+        }
+    }
+    (col_ptr, row_idx, source)
+}
+
 /// A matrix on `W`'s scalar pattern and its Cholesky factor (faer's low-level API: the
 /// factor's storage and workspace are reused from one factorisation to the next).
 pub(crate) struct PatternCholesky {
@@ -31,23 +50,8 @@ pub(crate) struct PatternCholesky {
 impl PatternCholesky {
     /// The pattern of `w` (symmetric; every stored block, the lower triangle is read).
     pub(crate) fn new(w: &BlockSparse) -> Result<Self, String> {
-        let nc = w.n_contacts();
-        let (mut col_ptr, mut row_idx, mut source) = (vec![0usize], Vec::new(), Vec::new());
-        // Column 2c + j holds rows 2a + i for the blocks (c, a) of row c, read transposed
-        // (W is symmetric): W[2a+i, 2c+j] = W(c, a)[2j + i].
-        for c in 0..nc {
-            for j in 0..2 {
-                for k in w.row_ptr[c]..w.row_ptr[c + 1] {
-                    let a = w.cols[k];
-                    for i in 0..2 {
-                        row_idx.push(2 * a + i);
-                        source.push((k, 2 * j + i));
-                    }
-                }
-                col_ptr.push(row_idx.len());
-            }
-        }
-        let n = 2 * nc;
+        let (col_ptr, row_idx, source) = symmetric_scalar_pattern(w);
+        let n = 2 * w.n_contacts();
         let pattern = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
         let symbolic = factorize_symbolic_cholesky(pattern, Side::Lower, SymmetricOrdering::Amd, Default::default())
             .map_err(|e| format!("{e:?}"))?;
