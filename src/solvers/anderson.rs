@@ -20,7 +20,7 @@ use super::recycled::{give_back, zeroed};
 use crate::parallel::{parallel, CHUNK};
 use crate::problem::cone::project_cone;
 use crate::problem::delassus::SweepState;
-use crate::problem::ContactProblem;
+use crate::problem::{lane_dot as dot, ContactProblem};
 
 /// Mixings between two rebuilds of the body velocities from the impulses.
 pub const REBUILD_EVERY: usize = 32;
@@ -293,19 +293,6 @@ impl<'a> ChunksMut<'a> {
         // references overlap.
         unsafe { std::slice::from_raw_parts_mut(self.ptr.add(lo), hi - lo) }
     }
-}
-
-/// `a · b` in four interleaved partial sums (vectorisable), in a fixed order.
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let mut lanes = [0.0; 4];
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
-    for (x, y) in ca.zip(cb) {
-        for i in 0..4 {
-            lanes[i] += x[i] * y[i];
-        }
-    }
-    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) + tail
 }
 
 /// Solves the normal equations `A γ = b` of the least-squares fit (a relative shift of 1e-10 and

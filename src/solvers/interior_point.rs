@@ -221,7 +221,10 @@ fn solve_with(
     let nc = p.n_contacts();
     let n = 2 * nc;
     let w = p.w.to_block_sparse();
-    let mut cholesky = match PatternCholesky::new(&w) {
+    // With friction the LU is built on the Cholesky's analysis, which must then be supernodal
+    // (also when the LU is not asked for: the frozen steps are then the same either way).
+    let analysis = if p.is_frictionless() { PatternCholesky::new(&w) } else { PatternCholesky::supernodal(&w) };
+    let mut cholesky = match analysis {
         Ok(c) => c,
         Err(e) => {
             monitor.stop_with(StopReason::Breakdown, format!("no sparse Cholesky on W's pattern: {e}"));
@@ -242,7 +245,7 @@ fn solve_with(
     }
     let mut lu = None;
     if coupled && !p.is_frictionless() {
-        let structure = PatternLu::new(&w);
+        let structure = PatternLu::new(&w, &cholesky);
         if let Err(e) = &structure {
             monitor.note(format!(
                 "no sparse LU of the coupled Newton matrix ({e}): every step freezes the friction shift"
@@ -316,14 +319,20 @@ fn solve_with(
         let coupled = lu.as_mut().filter(|_| last_step >= JAMMED).is_some_and(|lu| {
             let jac = coupled_blocks(&it, &blocks);
             let eps = delta * mean_diag;
-            // Entry (i, j) of block k of `D_r + D_u W + εI`, the block in contact a's row.
-            lu.factorise(|k, i, j| {
+            // Block k of `D_r + D_u W + εI`, the block in contact a's row.
+            lu.factorise_blocks(|k| {
                 let a = owner[k];
                 let (dr, du) = &jac[a];
                 let b = &w.blocks[k];
-                let product = du[2 * i] * b[j] + du[2 * i + 1] * b[2 + j];
-                let diagonal = if w.cols[k] == a { dr[2 * i + j] + if i == j { eps } else { 0.0 } } else { 0.0 };
-                product + diagonal
+                let mut out = [0.0; 4];
+                for (ij, v) in out.iter_mut().enumerate() {
+                    let (i, j) = (ij / 2, ij % 2);
+                    *v = du[2 * i] * b[j] + du[2 * i + 1] * b[2 + j];
+                    if w.cols[k] == a {
+                        *v += dr[ij] + if i == j { eps } else { 0.0 };
+                    }
+                }
+                out
             })
         });
         let factor = if coupled {
@@ -536,8 +545,9 @@ mod tests {
         let p = lattice_packing(12, 6, 0.5, 7);
         let opts = SolverOptions { tol: 1e-8, max_iter: 2_000, ..Default::default() };
         let w = p.w.to_block_sparse();
-        let entries = PatternCholesky::new(&w).unwrap().factor_entries();
-        let lu_bytes = PatternLu::new(&w).unwrap().bytes();
+        let cholesky = PatternCholesky::supernodal(&w).unwrap();
+        let entries = cholesky.factor_entries();
+        let lu_bytes = PatternLu::new(&w, &cholesky).unwrap().bytes();
         assert!(lu_bytes > CHOLESKY_BYTES_PER_ENTRY * entries, "{lu_bytes} bytes");
         let no_lu = solve_with(&p, &opts, zero(&p), true, Some(lu_bytes - 1));
         assert!(no_lu.notes.iter().any(|n| n.contains("no sparse LU")), "{:?}", no_lu.notes);

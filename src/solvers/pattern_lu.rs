@@ -1,5 +1,6 @@
 //! Sparse LU without pivoting on `W`'s scalar pattern, in the supernodal structure of the
-//! Cholesky factor of that pattern (AMD ordering, faer's symbolic analysis): the interior point's
+//! Cholesky factor of that pattern (the Cholesky's own analysis: AMD ordering, faer's symbolic
+//! factorisation, made once for both): the interior point's
 //! coupled Newton matrix `(I + E) W + D` (notes §6.6) fills exactly as `W + D`'s Cholesky.
 //!
 //! A general sparse LU (faer's: COLAMD, row pivoting) plans for every pivot order, i.e. for the
@@ -13,25 +14,19 @@
 //! diagonal block (recursive blocked LU) and solves its off-diagonal panels. Disjoint subtrees
 //! run side by side on threads, each supernode's arithmetic the same on any thread: the factor
 //! is the same bits for any thread count. The supernodes above them (the top separators, about
-//! half the work on a 67,094-contact step) run on one.
+//! half the work on a 67,094-contact step) run on one. The triangular solves split the same way.
 
 use faer::linalg::matmul::matmul;
-use faer::linalg::triangular_solve::{
-    solve_lower_triangular_in_place, solve_unit_lower_triangular_in_place, solve_upper_triangular_in_place,
-};
+use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_unit_lower_triangular_in_place};
 use faer::reborrow::{Reborrow, ReborrowMut};
-use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholeskyRaw, SymmetricOrdering,
-};
-use faer::sparse::linalg::SupernodalThreshold;
-use faer::sparse::SymbolicSparseColMatRef;
-use faer::{Accum, MatMut, MatRef, Par, Side};
+use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
+use faer::{Accum, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
-use super::sparse_cholesky::symmetric_scalar_pattern;
+use super::sparse_cholesky::PatternCholesky;
 use crate::parallel::split_lengths;
 
-use crate::problem::BlockSparse;
+use crate::problem::{lane_dot, BlockSparse};
 
 /// Below this size a diagonal block is factorised by plain loops.
 const SMALL_BLOCK: usize = 32;
@@ -43,8 +38,8 @@ pub(crate) struct PatternLu {
     /// `perm[new] = old` (AMD).
     perm: Vec<usize>,
     matrix: Permuted,
-    /// Entry e's place in `w.blocks`: block, row i and column j within it.
-    source: Vec<(usize, usize, usize)>,
+    /// Where block k's entry (i, j) of `w.blocks` lies in `matrix.values`: `dest[4k + 2i + j]`.
+    dest: Vec<usize>,
     sn: Supernodes,
     l: Vec<f64>,
     ut: Vec<f64>,
@@ -79,22 +74,24 @@ struct Supernodes {
     /// supernodes are in postorder, so a subtree is a range), then the supernodes above them.
     subtrees: Vec<(usize, usize)>,
     above: Vec<usize>,
+    /// For each entry of `rows` in a subtree's supernode whose row lies above the subtree, its
+    /// place in the subtree root's rows (where the solves keep what crosses the subtree's edge).
+    in_root: Vec<usize>,
 }
 
 impl PatternLu {
-    /// The structure for matrices on `w`'s pattern (every stored block and its mirror).
-    pub(crate) fn new(w: &BlockSparse) -> Result<Self, String> {
+    /// The structure for matrices on `w`'s pattern (every stored block and its mirror), from the
+    /// supernodal analysis `cholesky` made of it ([`PatternCholesky::supernodal`]): one AMD
+    /// ordering and one symbolic factorisation serve both factors.
+    pub(crate) fn new(w: &BlockSparse, cholesky: &PatternCholesky) -> Result<Self, String> {
         let nc = w.n_contacts();
         let n = 2 * nc;
         // The unpermuted pattern; an entry's value is block (a, c)'s, found below.
-        let (col_ptr0, row_idx0, _) = symmetric_scalar_pattern(w);
-        let pattern = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr0, None, &row_idx0);
-        let params = CholeskySymbolicParams {
-            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-            ..Default::default()
-        };
-        let symbolic = factorize_symbolic_cholesky(pattern, Side::Lower, SymmetricOrdering::Amd, params)
-            .map_err(|e| format!("{e:?}"))?;
+        let (col_ptr0, row_idx0) = cholesky.pattern();
+        let symbolic = cholesky.symbolic();
+        if symbolic.nrows() != n {
+            return Err(format!("the Cholesky's analysis is of {} rows, W has {n}", symbolic.nrows()));
+        }
         let (perm, perm_inv) = match symbolic.perm() {
             Some(p) => {
                 let (fwd, inv) = p.arrays();
@@ -119,19 +116,30 @@ impl PatternLu {
             let k = (w.row_ptr[a]..w.row_ptr[a + 1]).find(|&k| w.cols[k] == c);
             k.ok_or_else(|| format!("W's pattern is not symmetric: block ({c}, {a}) without ({a}, {c})"))
         };
-        let mut entries: Vec<(usize, usize, (usize, usize, usize))> = Vec::with_capacity(row_idx0.len());
-        for old_col in 0..n {
-            for &old_row in &row_idx0[col_ptr0[old_col]..col_ptr0[old_col + 1]] {
-                let k = block_at(old_row / 2, old_col / 2)?;
-                entries.push((perm_inv[old_col], perm_inv[old_row], (k, old_row % 2, old_col % 2)));
-            }
-        }
-        entries.sort_unstable_by_key(|&(col, row, _)| (col, row));
+        // By new column (counted), then each short column sorted by new row.
         let mut col_ptr = vec![0usize; n + 1];
-        entries.iter().for_each(|&(col, _, _)| col_ptr[col + 1] += 1);
+        for old_col in 0..n {
+            col_ptr[perm_inv[old_col] + 1] += col_ptr0[old_col + 1] - col_ptr0[old_col];
+        }
         (0..n).for_each(|c| col_ptr[c + 1] += col_ptr[c]);
-        let row_idx: Vec<usize> = entries.iter().map(|e| e.1).collect();
-        let source: Vec<_> = entries.iter().map(|e| e.2).collect();
+        let mut column: Vec<(usize, (usize, usize, usize))> = vec![(0, (0, 0, 0)); row_idx0.len()];
+        for old_col in 0..n {
+            let new_col = perm_inv[old_col];
+            let out = &mut column[col_ptr[new_col]..col_ptr[new_col + 1]];
+            for (slot, &old_row) in out.iter_mut().zip(&row_idx0[col_ptr0[old_col]..col_ptr0[old_col + 1]]) {
+                let k = block_at(old_row / 2, old_col / 2)?;
+                *slot = (perm_inv[old_row], (k, old_row % 2, old_col % 2));
+            }
+            out.sort_unstable_by_key(|&(row, _)| row);
+        }
+        let row_idx: Vec<usize> = column.iter().map(|e| e.0).collect();
+        let mut dest = vec![usize::MAX; 4 * w.blocks.len()];
+        for (e, &(_, (k, i, j))) in column.iter().enumerate() {
+            dest[4 * k + 2 * i + j] = e;
+        }
+        if dest.contains(&usize::MAX) {
+            return Err("W's pattern misses an entry of a stored block".into());
+        }
         let find = |row: usize, col: usize| {
             let range = col_ptr[col]..col_ptr[col + 1];
             range.start + row_idx[range].binary_search(&row).expect("symmetric pattern")
@@ -166,11 +174,16 @@ impl PatternLu {
             l_ptr.push(l_ptr[s] + (ns + np) * ns);
             ut_ptr.push(ut_ptr[s] + np * ns);
         }
-        let (subtrees, above) = thread_plan(&rows, &rows_ptr, &owner, &l_ptr, &begin);
+        let (mut subtrees, mut above) = thread_plan(&rows, &rows_ptr, &owner, &l_ptr, &begin);
+        let in_root = rows_in_roots(&subtrees, &begin, &rows, &rows_ptr).unwrap_or_else(|| {
+            // Not expected of an elimination tree; the plan is then dropped, solves and all.
+            (subtrees, above) = (Vec::new(), (0..n_super).collect());
+            Vec::new()
+        });
         let values = vec![0.0; row_idx.len()];
         let matrix = Permuted { col_ptr, row_idx, transposed, values };
-        let sn = Supernodes { begin, rows_ptr, rows, updates_ptr, updates, l_ptr, ut_ptr, subtrees, above };
-        Ok(Self { perm, matrix, source, sn, l: Vec::new(), ut: Vec::new(), factorised: false })
+        let sn = Supernodes { begin, rows_ptr, rows, updates_ptr, updates, l_ptr, ut_ptr, subtrees, above, in_root };
+        Ok(Self { perm, matrix, dest, sn, l: Vec::new(), ut: Vec::new(), factorised: false })
     }
 
     /// Entries of the factor (`L` and `U` together), known before any numeric factorisation.
@@ -186,9 +199,18 @@ impl PatternLu {
     /// Factorises the matrix whose entry at unpermuted (row, col) is `entry(k, i, j)`, the
     /// value at row i, column j of the block `w.blocks[k]` it lies in; false (and no factor)
     /// when a pivot is zero or not finite.
+    #[cfg(test)]
     pub(crate) fn factorise(&mut self, entry: impl Fn(usize, usize, usize) -> f64) -> bool {
-        for (v, &(k, i, j)) in self.matrix.values.iter_mut().zip(&self.source) {
-            *v = entry(k, i, j);
+        self.factorise_blocks(|k| [entry(k, 0, 0), entry(k, 0, 1), entry(k, 1, 0), entry(k, 1, 1)])
+    }
+
+    /// [`PatternLu::factorise`] with the matrix given by blocks: `block(k)` is the 2×2 block
+    /// on `w.blocks[k]`'s place, row-major.
+    pub(crate) fn factorise_blocks(&mut self, block: impl Fn(usize) -> [f64; 4]) -> bool {
+        for (k, places) in self.dest.chunks_exact(4).enumerate() {
+            for (&e, v) in places.iter().zip(block(k)) {
+                self.matrix.values[e] = v;
+            }
         }
         // Each panel is zeroed as its supernode starts, while it stays in cache.
         self.l.resize(*self.sn.l_ptr.last().unwrap_or(&0), 0.0);
@@ -235,8 +257,7 @@ impl PatternLu {
         let mut y = b.clone();
         self.solve_permuted(&mut y);
         // One round of iterative refinement: without pivots the solve loses digits the
-        // interior point needs near the end (a pile step that jammed at 3e-5 without it reaches
-        // 1e-8 in 120 iterations with it).
+        // interior point needs near the end.
         for _ in 0..REFINEMENTS {
             let mut residual = b.clone();
             for (j, &yj) in y.iter().enumerate() {
@@ -256,50 +277,117 @@ impl PatternLu {
         true
     }
 
-    /// `y = (P J Pᵀ)⁻¹ y` by the factor's triangular solves.
+    /// `y = (P J Pᵀ)⁻¹ y` by the factor's triangular solves. The subtrees of the thread plan
+    /// run side by side: forwards, each adds what it subtracts from the rows above it into its
+    /// own buffer (on its root's rows), subtracted after them in subtree order; backwards,
+    /// they run after the supernodes above, whose values they read. The order of every sum is
+    /// fixed by the structure: the same bits for any thread count.
     fn solve_permuted(&self, y: &mut [f64]) {
-        let mut gathered = Vec::new();
-        let n_super = self.sn.begin.len() - 1;
-        for s in 0..n_super {
-            let (s0, s1) = (self.sn.begin[s], self.sn.begin[s + 1]);
-            let (ns, pattern) = (s1 - s0, &self.sn.rows[self.sn.rows_ptr[s]..self.sn.rows_ptr[s + 1]]);
-            let ld = ns + pattern.len();
-            let ls = &self.l[self.sn.l_ptr[s]..self.sn.l_ptr[s + 1]];
-            solve_unit_lower_triangular_in_place(
-                MatRef::from_column_major_slice_with_stride(ls, ns, ns, ld),
-                MatMut::from_column_major_slice_mut(&mut y[s0..s1], ns, 1),
-                Par::Seq,
-            );
-            for c in 0..ns {
-                let yj = y[s0 + c];
-                for (&v, &row) in ls[c * ld + ns..(c + 1) * ld].iter().zip(pattern) {
-                    y[row] -= v * yj;
-                }
-            }
+        let sn = &self.sn;
+        let subtree_columns = |&(first, last): &(usize, usize)| (sn.begin[first], sn.begin[last + 1]);
+        let root_rows = |last: usize| &sn.rows[sn.rows_ptr[last]..sn.rows_ptr[last + 1]];
+        let buffers: Vec<Vec<f64>> = split_columns(y, sn.subtrees.iter().map(subtree_columns))
+            .into_par_iter()
+            .zip(&sn.subtrees)
+            .map(|(part, &(first, last))| {
+                let (mut above, mut product) = (vec![0.0; root_rows(last).len()], Vec::new());
+                let columns = (sn.begin[first], sn.begin[last + 1]);
+                (first..=last).for_each(|s| self.forward(s, part, columns, &mut above, &mut product));
+                above
+            })
+            .collect();
+        for (above, &(_, last)) in buffers.iter().zip(&sn.subtrees) {
+            root_rows(last).iter().zip(above).for_each(|(&row, v)| y[row] -= v);
         }
-        for s in (0..n_super).rev() {
-            let (s0, s1) = (self.sn.begin[s], self.sn.begin[s + 1]);
-            let (ns, pattern) = (s1 - s0, &self.sn.rows[self.sn.rows_ptr[s]..self.sn.rows_ptr[s + 1]]);
-            let (ld, np) = (ns + pattern.len(), pattern.len());
-            let uts = &self.ut[self.sn.ut_ptr[s]..self.sn.ut_ptr[s + 1]];
-            gathered.clear();
-            gathered.extend(pattern.iter().map(|&row| y[row]));
-            for c in 0..ns {
-                let right: f64 = uts[c * np..(c + 1) * np].iter().zip(&gathered).map(|(u, v)| u * v).sum();
-                y[s0 + c] -= right;
+        let (n, mut work) = (y.len(), Vec::new());
+        sn.above.iter().for_each(|&s| self.forward(s, y, (0, n), &mut [], &mut work));
+        sn.above.iter().rev().for_each(|&s| self.backward(s, y, (0, n), &[], &mut work));
+        let outside: Vec<Vec<f64>> =
+            sn.subtrees.iter().map(|&(_, last)| root_rows(last).iter().map(|&row| y[row]).collect()).collect();
+        split_columns(y, sn.subtrees.iter().map(subtree_columns))
+            .into_par_iter()
+            .zip(&sn.subtrees)
+            .zip(&outside)
+            .for_each(|((part, &(first, last)), outside)| {
+                let columns = (sn.begin[first], sn.begin[last + 1]);
+                let mut gathered = Vec::new();
+                (first..=last).rev().for_each(|s| self.backward(s, part, columns, outside, &mut gathered));
+            });
+    }
+
+    /// Supernode s's forward (unit lower) step on `y`, which holds the columns `c0..c1` from
+    /// `y[0]` on; a row past them (outside its subtree) adds into `above` at its place in the
+    /// subtree root's rows. `product` is workspace: the rows below are summed densely, then
+    /// subtracted once each.
+    fn forward(&self, s: usize, y: &mut [f64], (c0, c1): (usize, usize), above: &mut [f64], product: &mut Vec<f64>) {
+        let sn = &self.sn;
+        let (s0, ns) = (sn.begin[s] - c0, sn.begin[s + 1] - sn.begin[s]);
+        let rows = sn.rows_ptr[s]..sn.rows_ptr[s + 1];
+        let ld = ns + rows.len();
+        let ls = &self.l[sn.l_ptr[s]..sn.l_ptr[s + 1]];
+        product.clear();
+        product.resize(rows.len(), 0.0);
+        for c in 0..ns {
+            let column = &ls[c * ld..(c + 1) * ld];
+            let yj = y[s0 + c];
+            for (r, &v) in column[c + 1..ns].iter().enumerate() {
+                y[s0 + c + 1 + r] -= v * yj;
             }
-            solve_upper_triangular_in_place(
-                MatRef::from_column_major_slice_with_stride(
-                    &self.l[self.sn.l_ptr[s]..self.sn.l_ptr[s + 1]],
-                    ns,
-                    ns,
-                    ld,
-                ),
-                MatMut::from_column_major_slice_mut(&mut y[s0..s1], ns, 1),
-                Par::Seq,
-            );
+            product.iter_mut().zip(&column[ns..]).for_each(|(t, &v)| *t += v * yj);
+        }
+        for (&t, e) in product.iter().zip(rows) {
+            let row = sn.rows[e];
+            if row < c1 {
+                y[row - c0] -= t;
+            } else {
+                above[sn.in_root[e]] += t;
+            }
         }
     }
+
+    /// Supernode s's backward (upper) step on `y`, which holds the columns `c0..c1` from `y[0]`
+    /// on; a row past them is read from `outside` at its place in the subtree root's rows.
+    /// `gathered` is workspace.
+    fn backward(&self, s: usize, y: &mut [f64], (c0, c1): (usize, usize), outside: &[f64], gathered: &mut Vec<f64>) {
+        let sn = &self.sn;
+        let (s0, ns) = (sn.begin[s] - c0, sn.begin[s + 1] - sn.begin[s]);
+        let rows = sn.rows_ptr[s]..sn.rows_ptr[s + 1];
+        let (ld, np) = (ns + rows.len(), rows.len());
+        let value = |e: usize| {
+            let row = sn.rows[e];
+            if row < c1 {
+                y[row - c0]
+            } else {
+                outside[sn.in_root[e]]
+            }
+        };
+        gathered.clear();
+        gathered.extend(rows.map(value));
+        let uts = &self.ut[sn.ut_ptr[s]..sn.ut_ptr[s + 1]];
+        for c in 0..ns {
+            let right = lane_dot(&uts[c * np..(c + 1) * np], gathered);
+            y[s0 + c] -= right;
+        }
+        let ls = &self.l[sn.l_ptr[s]..sn.l_ptr[s + 1]];
+        for c in (0..ns).rev() {
+            let column = &ls[c * ld..c * ld + c + 1];
+            let yc = y[s0 + c] / column[c];
+            y[s0 + c] = yc;
+            for (r, &v) in column[..c].iter().enumerate() {
+                y[s0 + r] -= v * yc;
+            }
+        }
+    }
+}
+
+/// `y`'s disjoint column ranges `ranges` (increasing), as slices.
+fn split_columns(y: &mut [f64], ranges: impl Iterator<Item = (usize, usize)>) -> Vec<&mut [f64]> {
+    let (mut lengths, mut next) = (Vec::new(), 0);
+    for (c0, c1) in ranges {
+        lengths.extend([c0 - next, c1 - c0]);
+        next = c1;
+    }
+    split_lengths(y, lengths).into_iter().skip(1).step_by(2).collect()
 }
 
 /// Per-thread workspace of a factorisation: where the rows of the supernode being factorised
@@ -409,6 +497,27 @@ fn factor_supernode(
     true
 }
 
+/// For each row entry of a subtree's supernode that lies above the subtree, its place in the
+/// subtree root's rows (an elimination tree's property: a descendant's rows past the subtree
+/// are its root's); `None` if one is not there.
+fn rows_in_roots(
+    subtrees: &[(usize, usize)],
+    begin: &[usize],
+    rows: &[usize],
+    rows_ptr: &[usize],
+) -> Option<Vec<usize>> {
+    let mut in_root = vec![usize::MAX; rows.len()];
+    for &(first, last) in subtrees {
+        let root = &rows[rows_ptr[last]..rows_ptr[last + 1]];
+        for e in rows_ptr[first]..rows_ptr[last + 1] {
+            if rows[e] >= begin[last + 1] {
+                in_root[e] = root.binary_search(&rows[e]).ok()?;
+            }
+        }
+    }
+    Some(in_root)
+}
+
 /// Subtrees of at most this share of the factorisation's work are not split further.
 const SUBTREE_SHARE: f64 = 1.0 / 16.0;
 /// Below this work (about the flops of the dense products) a factorisation stays on one thread.
@@ -516,7 +625,7 @@ mod tests {
         let p = lattice_packing(24, 12, 0.5, 3);
         let w = p.w.to_block_sparse();
         let nc = w.n_contacts();
-        let mut lu = PatternLu::new(&w).unwrap();
+        let mut lu = PatternLu::new(&w, &PatternCholesky::supernodal(&w).unwrap()).unwrap();
         let sign = |a: usize| if a.is_multiple_of(3) { 1.0 } else { -1.0 };
         // Row 2a (n) gains μ sgn · row 2a + 1 (t) of W; diagonal blocks gain a barrier.
         let value = |a: usize, k: usize, i: usize, j: usize| {
@@ -552,7 +661,7 @@ mod tests {
     fn a_zero_pivot_is_reported() {
         let p = lattice_packing(6, 4, 0.5, 3);
         let w = p.w.to_block_sparse();
-        let mut lu = PatternLu::new(&w).unwrap();
+        let mut lu = PatternLu::new(&w, &PatternCholesky::supernodal(&w).unwrap()).unwrap();
         // W with its first contact's tangential row and column removed: a zero diagonal entry.
         assert!(!lu.factorise(|k, i, j| {
             let first = (k < w.row_ptr[1] && i == 1) || (w.cols[k] == 0 && j == 1);
@@ -569,12 +678,12 @@ mod tests {
     /// Subtrees factorised side by side on threads give the factor that one thread gets
     /// supernode by supernode in order, to the bit (a lattice large enough to be split).
     #[test]
-    fn subtrees_on_threads_give_the_factor_of_one_thread_in_order() {
+    fn subtrees_on_threads_give_the_factor_and_solves_of_one_thread_in_order() {
         let p = lattice_packing(80, 40, 0.5, 3);
         let w = p.w.to_block_sparse();
-        let mut split = PatternLu::new(&w).unwrap();
+        let mut split = PatternLu::new(&w, &PatternCholesky::supernodal(&w).unwrap()).unwrap();
         assert!(split.sn.subtrees.len() > 1, "{} subtrees", split.sn.subtrees.len());
-        let mut in_order = PatternLu::new(&w).unwrap();
+        let mut in_order = PatternLu::new(&w, &PatternCholesky::supernodal(&w).unwrap()).unwrap();
         in_order.sn.subtrees.clear();
         in_order.sn.above = (0..in_order.sn.begin.len() - 1).collect();
         let owner = w.block_rows();
@@ -589,5 +698,19 @@ mod tests {
         assert!(in_order.factorise(value));
         assert!(split.l.iter().zip(&in_order.l).all(|(a, b)| a.to_bits() == b.to_bits()));
         assert!(split.ut.iter().zip(&in_order.ut).all(|(a, b)| a.to_bits() == b.to_bits()));
+
+        // The solves (without the refinement, which would mend a wrong sum above the subtrees):
+        // subtrees side by side, what crosses their edges summed in their order.
+        let rhs: Vec<f64> = (0..2 * p.n_contacts()).map(|i| ((i * 37 % 101) as f64 - 50.0) / 25.0).collect();
+        let solved = |lu: &PatternLu, threads: usize| {
+            let mut y = rhs.clone();
+            crate::parallel::thread_pool(threads).unwrap().install(|| lu.solve_permuted(&mut y));
+            y
+        };
+        let (one, three, reference) = (solved(&split, 1), solved(&split, 3), solved(&in_order, 1));
+        assert!(one.iter().zip(&three).all(|(a, b)| a.to_bits() == b.to_bits()), "thread counts differ");
+        let scale = reference.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let gap = one.iter().zip(&reference).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(gap <= 1e-10 * scale, "split solve {gap:e} from the in-order one (scale {scale:e})");
     }
 }

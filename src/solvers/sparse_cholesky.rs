@@ -4,7 +4,10 @@
 //! is known from the symbolic step, before any numeric work (the interior point's memory check).
 
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering};
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+};
+use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
@@ -16,7 +19,7 @@ const MAX_DELTA: f64 = 1e-2;
 /// `W`'s scalar pattern by columns (`col_ptr`, `row_idx`), read from its block rows (`W` is
 /// symmetric): column 2c + j holds rows 2a + i of the blocks (c, a) of row c, and `source` gives
 /// each entry's block and place in it, `W[2a+i, 2c+j] = W(c, a)[2j + i]`.
-pub(crate) fn symmetric_scalar_pattern(w: &BlockSparse) -> (Vec<usize>, Vec<usize>, Vec<(usize, usize)>) {
+fn symmetric_scalar_pattern(w: &BlockSparse) -> (Vec<usize>, Vec<usize>, Vec<(usize, usize)>) {
     let (mut col_ptr, mut row_idx, mut source) = (vec![0usize], Vec::new(), Vec::new());
     for c in 0..w.n_contacts() {
         for j in 0..2 {
@@ -50,16 +53,40 @@ pub(crate) struct PatternCholesky {
 impl PatternCholesky {
     /// The pattern of `w` (symmetric; every stored block, the lower triangle is read).
     pub(crate) fn new(w: &BlockSparse) -> Result<Self, String> {
+        Self::with_params(w, Default::default())
+    }
+
+    /// [`PatternCholesky::new`] with its analysis supernodal whatever the problem's size, so
+    /// that [`PatternLu`](super::pattern_lu::PatternLu) can be built on the same analysis.
+    pub(crate) fn supernodal(w: &BlockSparse) -> Result<Self, String> {
+        let params = CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+            ..Default::default()
+        };
+        Self::with_params(w, params)
+    }
+
+    fn with_params(w: &BlockSparse, params: CholeskySymbolicParams<'_>) -> Result<Self, String> {
         let (col_ptr, row_idx, source) = symmetric_scalar_pattern(w);
         let n = 2 * w.n_contacts();
         let pattern = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-        let symbolic = factorize_symbolic_cholesky(pattern, Side::Lower, SymmetricOrdering::Amd, Default::default())
+        let symbolic = factorize_symbolic_cholesky(pattern, Side::Lower, SymmetricOrdering::Amd, params)
             .map_err(|e| format!("{e:?}"))?;
         let scratch = MemBuffer::try_new(symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()))
             .map_err(|e| format!("{e:?}"))?;
         let values = vec![0.0; row_idx.len()];
         let factor_values = Vec::new();
         Ok(Self { col_ptr, row_idx, source, values, symbolic, factor_values, scratch, factorised: false })
+    }
+
+    /// The scalar pattern it was built on, by columns: (`col_ptr`, `row_idx`).
+    pub(crate) fn pattern(&self) -> (&[usize], &[usize]) {
+        (&self.col_ptr, &self.row_idx)
+    }
+
+    /// Its symbolic analysis: the AMD ordering and the factor's structure.
+    pub(crate) fn symbolic(&self) -> &SymbolicCholesky<usize> {
+        &self.symbolic
     }
 
     /// Entries of the Cholesky factor (its fill, known before any numeric factorisation).
