@@ -289,9 +289,9 @@ impl PatternLu {
         let buffers: Vec<Vec<f64>> = split_columns(y, sn.subtrees.iter().map(subtree_columns))
             .into_par_iter()
             .zip(&sn.subtrees)
-            .map(|(part, &(first, last))| {
+            .map(|(part, subtree @ &(first, last))| {
                 let (mut above, mut product) = (vec![0.0; root_rows(last).len()], Vec::new());
-                let columns = (sn.begin[first], sn.begin[last + 1]);
+                let columns = subtree_columns(subtree);
                 (first..=last).for_each(|s| self.forward(s, part, columns, &mut above, &mut product));
                 above
             })
@@ -308,8 +308,8 @@ impl PatternLu {
             .into_par_iter()
             .zip(&sn.subtrees)
             .zip(&outside)
-            .for_each(|((part, &(first, last)), outside)| {
-                let columns = (sn.begin[first], sn.begin[last + 1]);
+            .for_each(|((part, subtree @ &(first, last)), outside)| {
+                let columns = subtree_columns(subtree);
                 let mut gathered = Vec::new();
                 (first..=last).rev().for_each(|s| self.backward(s, part, columns, outside, &mut gathered));
             });
