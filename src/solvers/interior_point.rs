@@ -229,7 +229,8 @@ enum Steps {
 
 /// [`solve`] by the given `steps`, its factorisations kept within `memory` bytes (the coupled
 /// step's LU dropped, or the solve stopped before it starts, when their estimated size exceeds
-/// it), and how many of its steps were frozen after a jam.
+/// it), and how many of its steps froze the shift though it had an LU (after a jam, or when the
+/// LU failed): none means a second try would retrace its path.
 fn solve_with(
     p: &ContactProblem,
     opts: &SolverOptions,
