@@ -154,13 +154,14 @@ enum Factor {
 /// Solves from `r0` (pushed inside the cones) by the interior point method above.
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>) -> SolveReport {
     let memory = available_memory().map(|bytes| bytes / 2);
-    let (mut ip, jammed_steps) = solve_with(p, opts, r0.clone(), Steps::Coupled, memory);
+    let first = solve_with(p, opts, r0.clone(), Steps::Coupled, memory);
+    let mut ip = first.report;
     let left = |ip: &SolveReport| opts.max_iter.saturating_sub(ip.iterations);
     // A jam's way out depends on the path (rounding alone can change it): a solve that stalled
     // in jams tries once more from the start, centring each step after a jam, before NLGS.
-    if jammed_steps > 0 && ip.stop == StopReason::Stalled && ip.stop_reason != FLOOR && left(&ip) > 0 {
+    if first.frozen_steps > 0 && ip.stop == StopReason::Stalled && !first.at_floor && left(&ip) > 0 {
         let again = SolverOptions { max_iter: left(&ip), ..opts.clone() };
-        let (second, _) = solve_with(p, &again, r0, Steps::CoupledRecentred, memory);
+        let second = solve_with(p, &again, r0, Steps::CoupledRecentred, memory).report;
         let note = "again from the start, each step after a jam centred";
         ip = chained(ip, second, note);
     }
@@ -227,22 +228,25 @@ enum Steps {
     CoupledRecentred,
 }
 
+/// One run of [`solve_with`].
+struct Attempt {
+    report: SolveReport,
+    /// Steps that froze the shift though an LU was there (after a jam, or when the LU failed):
+    /// none means a second try would retrace the same path.
+    frozen_steps: usize,
+    /// Whether it stopped at the floor of f64 arithmetic, where a second try would stop too.
+    at_floor: bool,
+}
+
 /// [`solve`] by the given `steps`, its factorisations kept within `memory` bytes (the coupled
 /// step's LU dropped, or the solve stopped before it starts, when their estimated size exceeds
-/// it), and how many of its steps froze the shift though it had an LU (after a jam, or when the
-/// LU failed): none means a second try would retrace its path.
-fn solve_with(
-    p: &ContactProblem,
-    opts: &SolverOptions,
-    r0: Vec<f64>,
-    steps: Steps,
-    memory: Option<usize>,
-) -> (SolveReport, usize) {
+/// it).
+fn solve_with(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>, steps: Steps, memory: Option<usize>) -> Attempt {
     let mut monitor = Monitor::new(p, opts, SolverKind::InteriorPoint, &r0);
     // A start that already solves the problem (a warm start, or r = 0 at q = 0) is kept: the
     // iterates below are strictly inside the cones and would only approach it.
     if monitor.observe(&r0, None) {
-        return (monitor.finish(r0), 0);
+        return Attempt { report: monitor.finish(r0), frozen_steps: 0, at_floor: false };
     }
     let nc = p.n_contacts();
     let n = 2 * nc;
@@ -254,7 +258,7 @@ fn solve_with(
         Ok(c) => c,
         Err(e) => {
             monitor.stop_with(StopReason::Breakdown, format!("no sparse Cholesky on W's pattern: {e}"));
-            return (monitor.finish(r0), 0);
+            return Attempt { report: monitor.finish(r0), frozen_steps: 0, at_floor: false };
         }
     };
     let entries = cholesky.factor_entries();
@@ -267,7 +271,7 @@ fn solve_with(
             size(memory)
         );
         monitor.stop_with(StopReason::Breakdown, why);
-        return (monitor.finish(r0), 0);
+        return Attempt { report: monitor.finish(r0), frozen_steps: 0, at_floor: false };
     }
     let mut lu = None;
     if steps != Steps::Frozen && !p.is_frictionless() {
@@ -325,7 +329,7 @@ fn solve_with(
         dz: vec![0.0; n],
         comp: vec![0.0; n],
     };
-    let (mut last_step, mut symmetric_steps) = (1.0f64, 0usize);
+    let (mut last_step, mut symmetric_steps, mut at_floor) = (1.0f64, 0usize, false);
     let (mut best, mut best_at) = (f64::INFINITY, 0usize);
     loop {
         if monitor.observe(&it.r, Some(&it.u)) {
@@ -388,6 +392,7 @@ fn solve_with(
                 continue;
             }
             monitor.stop_with(StopReason::Stalled, FLOOR);
+            at_floor = true;
             break;
         }
         let Directions { dr, dz, .. } = &work;
@@ -402,7 +407,7 @@ fn solve_with(
     if symmetric_steps > 0 {
         monitor.note(format!("{symmetric_steps} steps with the friction shift frozen (jammed or no LU)"));
     }
-    (monitor.finish(it.r), symmetric_steps)
+    Attempt { report: monitor.finish(it.r), frozen_steps: symmetric_steps, at_floor }
 }
 
 /// The predictor's and the corrector's directions, and the complementarity targets.
@@ -559,8 +564,8 @@ mod tests {
         for mu in [0.3, 0.8] {
             let p = lattice_packing(16, 8, mu, 3);
             let opts = SolverOptions { tol: 1e-10, max_iter: 60, ..Default::default() };
-            let (coupled, _) = solve_with(&p, &opts, zero(&p), Steps::Coupled, None);
-            let (frozen, _) = solve_with(&p, &opts, zero(&p), Steps::Frozen, None);
+            let coupled = solve_with(&p, &opts, zero(&p), Steps::Coupled, None).report;
+            let frozen = solve_with(&p, &opts, zero(&p), Steps::Frozen, None).report;
             assert!(coupled.converged, "mu {mu}: {} ({:e})", coupled.stop_reason, coupled.error);
             assert!(frozen.error > 100.0 * opts.tol, "mu {mu}: frozen shift reached {:e}", frozen.error);
         }
@@ -579,13 +584,13 @@ mod tests {
         let entries = cholesky.factor_entries();
         let lu_bytes = PatternLu::new(&w, &cholesky).unwrap().bytes();
         assert!(lu_bytes > CHOLESKY_BYTES_PER_ENTRY * entries, "{lu_bytes} bytes");
-        let (no_lu, _) = solve_with(&p, &opts, zero(&p), Steps::Coupled, Some(lu_bytes - 1));
+        let no_lu = solve_with(&p, &opts, zero(&p), Steps::Coupled, Some(lu_bytes - 1)).report;
         assert!(no_lu.notes.iter().any(|n| n.contains("no sparse LU")), "{:?}", no_lu.notes);
-        let (frozen, _) = solve_with(&p, &opts, zero(&p), Steps::Frozen, None);
+        let frozen = solve_with(&p, &opts, zero(&p), Steps::Frozen, None).report;
         assert_eq!(no_lu.error, frozen.error, "the LU-less solve is the frozen-shift one");
 
-        let (nothing, _) =
-            solve_with(&p, &opts, zero(&p), Steps::Coupled, Some(CHOLESKY_BYTES_PER_ENTRY * entries - 1));
+        let nothing =
+            solve_with(&p, &opts, zero(&p), Steps::Coupled, Some(CHOLESKY_BYTES_PER_ENTRY * entries - 1)).report;
         assert!(nothing.stop == StopReason::Breakdown && nothing.stop_reason.contains("Cholesky factor would need"));
         assert!(nothing.iterations <= 1, "{} iterations", nothing.iterations);
         let sweeps = chained(nothing, nlgs::solve(&p, &opts, zero(&p)), "then NLGS from its iterate");
