@@ -3,16 +3,19 @@
 not a solver of the crate).
 
 Each outer iteration solves the problem with W + rho I and q - rho r_k (the proximal term
-rho |r - r_k|^2 / 2 around the last answer) by `moreau solve --solver interior-point` to a
-tolerance `fac` times the outer error, and judges the answer by the original problem's error.
+rho |r - r_k|^2 / 2 around the last answer) by `moreau solve` (the interior point unless told
+otherwise) to a tolerance `fac` times the outer error, and judges the answer by the original problem's error.
 rho = alpha x mean diag W; alpha halves after a subproblem meets its tolerance (not below
 alpha_min) and is multiplied by 4 after one that does not; an answer that missed its
 tolerance is kept only if it lowers the error.
 
 Needs python3-scipy (run with /usr/bin/python3) and a release build of moreau.
 
-    /usr/bin/python3 benches/proximal_point.py FILE ALPHA OUTER FAC ALPHA_MIN
+    /usr/bin/python3 benches/proximal_point.py FILE ALPHA OUTER FAC ALPHA_MIN [SOLVE_ARGS...]
     e.g. benches/proximal_point.py deposit.dat 1e-3 30 0.01 1e-6
+         benches/proximal_point.py deposit.dat 1e-3 30 0.01 1e-6 --solver newton --newton-linear direct
+
+SOLVE_ARGS go to `moreau solve` for each subproblem (default: --solver interior-point).
 """
 import json, os, subprocess, sys, tempfile
 import numpy as np
@@ -36,9 +39,9 @@ def write_fc2d(path, W, q, mu):
     open(path, "w").write("\n".join(out) + "\n")
 
 
-def interior_point(path, tol, out):
-    subprocess.run([MOREAU, "solve", path, "--solver", "interior-point", "--device", "cpu",
-                    "--threads", "1", "--tol", str(tol), "--max-iter", "300", "--out", out],
+def solve_subproblem(path, tol, out, solve_args):
+    subprocess.run([MOREAU, "solve", path, *solve_args, "--device", "cpu", "--threads", "1",
+                    "--tol", str(tol), "--max-iter", "300", "--out", out],
                    check=True, capture_output=True)
     j = json.load(open(out))
     return np.array(j["r"]), j
@@ -47,6 +50,7 @@ def interior_point(path, tol, out):
 def main():
     path, alpha, outer, fac, alpha_min = sys.argv[1], float(sys.argv[2]), int(sys.argv[3]), \
         float(sys.argv[4]), float(sys.argv[5])
+    solve_args = sys.argv[6:] or ["--solver", "interior-point"]
     W, q, mu = read_fc2d(path)
     n = len(q); mean_diag = W.diagonal().mean()
     r = np.zeros(n); err = 1.0; seconds = 0.0
@@ -58,7 +62,7 @@ def main():
             rho = alpha * mean_diag
             write_fc2d(sub, W + rho * sp.identity(n, format="csc"), q - rho * r, mu)
             tol = max(1e-11, fac * err)
-            r_new, j = interior_point(sub, tol, out)
+            r_new, j = solve_subproblem(sub, tol, out, solve_args)
             seconds += j["seconds"]
             err_new = error(W, q, mu, r_new)
             met = j["error"] <= 10 * tol
