@@ -4,12 +4,15 @@ not a solver of the crate).
 
 Each outer iteration solves the problem with W + rho I and q - rho r_k (the proximal term
 rho |r - r_k|^2 / 2 around the last answer) by `moreau solve` (the interior point unless told
-otherwise) to a tolerance `fac` times the outer error, and judges the answer by the original problem's error.
+otherwise) to a tolerance `fac` times the outer error, and judges the answer by the original
+problem's error.
 rho = alpha x mean diag W; alpha halves after a subproblem meets its tolerance (not below
 alpha_min) and is multiplied by 4 after one that does not; an answer that missed its
 tolerance is kept only if it lowers the error.
 
-Needs python3-scipy (run with /usr/bin/python3) and a release build of moreau.
+Needs Debian's python3-scipy and python3-siconos (the reader and the error come from
+siconos_compare.py, which imports Siconos; run with /usr/bin/python3) and a release build of
+moreau.
 
     /usr/bin/python3 benches/proximal_point.py FILE ALPHA OUTER FAC ALPHA_MIN [SOLVE_ARGS...]
     e.g. benches/proximal_point.py deposit.dat 1e-3 30 0.01 1e-6
