@@ -5,7 +5,7 @@
 use serde::Serialize;
 use std::fmt;
 
-use super::{SolveReport, StopCriterion};
+use super::{HistoryPoint, SolveReport, StopCriterion};
 use crate::problem::residual::{free_velocity_bound, loaded_approach, velocity_error_scaled};
 use crate::problem::{ContactProblem, Delassus, Mat2};
 
@@ -217,6 +217,47 @@ impl StallWatch {
     }
 }
 
+/// Checks of each of the last two quarters of a solve below which [`stopped_falling`] says
+/// nothing: too few to tell a wandering error from a falling one.
+const QUARTER_CHECKS: usize = 8;
+/// Median ratio of the last quarter's checks to the quarter before's above which the error has
+/// stopped falling: an error falling as k^−0.3 or faster (NLGS's crawl on deposits falls as
+/// 1/k – k^−0.75 while it converges) gives 0.9 or less.
+const NOT_FALLING: f64 = 0.9;
+
+/// A note for a solve that ran out of iterations with its error no longer falling: on
+/// frictional deposits NLGS's error wanders in a band for millions of sweeps (BENCHMARKS.md,
+/// "NLGS on the frictional deposits does not converge"), where more iterations would not help.
+/// Compares the median error of the checks of the last quarter of the `iterations` with that of
+/// the quarter before.
+pub(crate) fn stopped_falling(history: &[HistoryPoint], iterations: usize) -> Option<String> {
+    let quarter = |from: usize, to: usize| {
+        let mut e: Vec<f64> = history
+            .iter()
+            .filter(|h| h.iteration > from && h.iteration <= to && h.error.is_finite())
+            .map(|h| h.error)
+            .collect();
+        e.sort_by(f64::total_cmp);
+        e
+    };
+    let (earlier, last) = (quarter(iterations / 2, 3 * iterations / 4), quarter(3 * iterations / 4, iterations));
+    if earlier.len() < QUARTER_CHECKS || last.len() < QUARTER_CHECKS {
+        return None;
+    }
+    let median = |e: &[f64]| e[e.len() / 2];
+    (median(&last) > NOT_FALLING * median(&earlier)).then(|| {
+        format!(
+            "the error stopped falling: the median of its checks over the last quarter of the iterations \
+             ({:.2e}) is no lower than over the quarter before ({:.2e}), the checks ranging {:.2e} – {:.2e}; \
+             more iterations of this solver are unlikely to reach tol",
+            median(&last),
+            median(&earlier),
+            earlier[0].min(last[0]),
+            earlier[earlier.len() - 1].max(last[last.len() - 1])
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -264,5 +305,24 @@ mod tests {
         assert_eq!(judged(&stepped, StopCriterion::Velocity), judged(&p, StopCriterion::Velocity));
         assert!(judged(&stepped, StopCriterion::Natural).is_nan(), "the natural map is the caller's");
         assert!(p.with_velocity_floor(-1.0).is_err());
+    }
+
+    fn history(errors: impl Iterator<Item = (usize, f64)>) -> Vec<HistoryPoint> {
+        errors
+            .map(|(iteration, error)| HistoryPoint { iteration, seconds: 0.0, w_products: iteration, error })
+            .collect()
+    }
+
+    /// An error wandering in a band is said to have stopped falling; one falling as 1/k, or
+    /// checked too seldom to tell, is not.
+    #[test]
+    fn a_wandering_error_is_told_from_a_falling_one() {
+        let wandering = history((1..=1000).map(|c| (10 * c, 6e-5 * (1.0 + 0.9 * ((c * 7919) % 13) as f64 / 13.0))));
+        let note = stopped_falling(&wandering, 10_000).expect("a note for a wandering error");
+        assert!(note.starts_with("the error stopped falling"), "{note}");
+        let falling = history((1..=1000).map(|c| (10 * c, 1.0 / (10 * c) as f64)));
+        assert_eq!(stopped_falling(&falling, 10_000), None);
+        let seldom = history((1..=10).map(|c| (1000 * c, 6e-5)));
+        assert_eq!(stopped_falling(&seldom, 10_000), None, "two or three checks a quarter are too few");
     }
 }
