@@ -61,7 +61,7 @@ fn a_loaded_scene_keeps_its_files_warnings_and_notes_for_the_host() {
     let warnings = sim.check().unwrap().to_vec();
     assert!(notes.len() == 1 && notes[0].contains("800 grains") && notes[0].contains("numbered in rows"), "{notes:?}");
     assert!(warnings.len() == 2, "{warnings:?}");
-    assert!(warnings[0].contains("spins") && warnings[1].contains("inside a wall"), "{warnings:?}");
+    assert!(warnings[0].contains("spins") && warnings[1].contains("overlapping a wall"), "{warnings:?}");
     // A simulation built from the scene's world by hand has the start's warning alone.
     let s = moreau::scene::load(&scene).unwrap();
     let mut by_hand = Simulation::new(s.world, s.settings).unwrap();

@@ -119,14 +119,15 @@ fn suspicious_starts_are_warned_about() {
         [[body]]\ndisk = { center = [0.5, 0.1], radius = 0.05 }\n\
         [[body]]\ndisk = { center = [5.0, -5.0], radius = 0.05 }\n\
         [[body]]\ndisk = { center = [0.5, 0.5], radius = 0.05 }\n\
-        [[body]]\ndisk = { center = [0.5, 0.5], radius = 0.05 }\n";
+        [[body]]\ndisk = { center = [0.5, 0.5], radius = 0.05 }\n\
+        [[body]]\ndisk = { center = [0.2, 0.249], radius = 0.05 }\n";
     let (o, _) = run_scene("suspicious", scene, &[]);
     let e = stderr(&o);
     assert!(o.status.success(), "{e}");
     for needle in [
         "start outside the walls' bounds, below or beside them (first: body 1",
-        // Body 0 lies in both boxes: one grain, not two.
-        "1 grain(s) start inside a wall (first: body 0",
+        // Body 0 lies in both boxes, body 4 2 % of its radius into the first's top: two grains.
+        "2 grain(s) start overlapping a wall by more than 1 % of their radius (deepest: body 0",
         "same position (first: bodies 2 and 3",
     ] {
         assert!(e.contains(needle), "no warning {needle:?}:\n{e}");

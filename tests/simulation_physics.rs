@@ -585,3 +585,24 @@ material = "m"
     let line = scene("pass_through = 1").lines().position(|l| l == "pass_through = 1").unwrap() + 1;
     assert!(e.to_string().contains(&format!("line {line}: invalid type: integer `1`, expected a boolean")), "{e}");
 }
+
+/// A grain that starts 2 % of its radius into the floor (a settled pile saved and read back)
+/// keeps that overlap and still slides: a block's Coulomb deceleration, exactly, as if it touched.
+#[test]
+fn a_grain_started_into_the_floor_keeps_its_overlap_and_slides() {
+    let (mu, g, y0) = (0.3, 9.81, 0.098);
+    let toml = format!(
+        "{}\n[[wall]]\nsegment = [[-5.0, 0.0], [5.0, 0.0]]\n[[body]]\ndisk = {{ center = [0.0, {y0}], radius = 0.1 }}\n\
+         velocity = [1.0, 0.0]\n",
+        header(r#""gravity", "friction""#, 100, mu, 1000.0)
+    );
+    let (mut sim, steps) = simulation(&toml);
+    let warned = sim.check().unwrap().to_vec();
+    assert!(warned.iter().any(|w| w.contains("overlapping a wall") && w.contains("the overlaps stay")), "{warned:?}");
+    for _ in 0..steps {
+        assert!(sim.step().unwrap().converged);
+    }
+    let v = 1.0 - mu * g * sim.time();
+    assert!((sim.velocity(0).x - v).abs() < 1e-9, "slides at {}, not {v}", sim.velocity(0));
+    assert!((sim.position(0).y - y0).abs() < 1e-12, "the overlap changed: y = {}", sim.position(0).y);
+}

@@ -745,7 +745,7 @@ def test_the_warnings_and_notes_of_the_command_line_reach_python_once(tmp_path):
     with pytest.warns(UserWarning) as record:
         sim.step()
     said = [str(r.message) for r in record]
-    assert len(said) == 2 and "spins but the effect `rotation`" in said[0] and "inside a wall" in said[1], said
+    assert len(said) == 2 and "spins but the effect `rotation`" in said[0] and "overlapping a wall" in said[1], said
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         sim.step()
@@ -759,7 +759,7 @@ def test_the_warnings_and_notes_of_the_command_line_reach_python_once(tmp_path):
     world.add_wall((-1.0, 0.0), (1.0, 0.0), "g")
     world.add_disk((0.0, 0.2), 0.5, "g")
     sim = moreau.Simulation(world, h=1e-3)
-    with pytest.warns(UserWarning, match="inside a wall") as record:
+    with pytest.warns(UserWarning, match="overlapping a wall") as record:
         found = sim.check()
     assert [str(r.message) for r in record] == found and sim.notes == []
     with warnings.catch_warnings():

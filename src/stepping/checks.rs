@@ -73,7 +73,7 @@ pub fn check_start(world: &World, h: f64) -> Result<Vec<String>, String> {
     Ok(warnings)
 }
 
-/// Grains outside the walls' bounds, inside a wall, or on top of another grain at the start.
+/// Grains outside the walls' bounds, overlapping a wall, or on top of another grain at the start.
 fn start_overlaps(world: &World) -> Vec<String> {
     let b = &world.bodies;
     let mut warnings = Vec::new();
@@ -123,7 +123,7 @@ fn start_overlaps(world: &World) -> Vec<String> {
     let (mut in_wall, mut coincident, mut overlapping) = (Vec::new(), Vec::new(), Vec::new());
     for c in &contacts {
         match c.other {
-            Antagonist::Wall(w) if -c.gap > 1e-3 * b.bounding_radius[c.i] => in_wall.push((c.i, w, -c.gap)),
+            Antagonist::Wall(w) if -c.gap > 1e-2 * b.bounding_radius[c.i] => in_wall.push((c.i, w, -c.gap)),
             Antagonist::Body(j) if b.position[c.i].distance(b.position[j]) <= 1e-9 * b.bounding_radius[c.i] => {
                 coincident.push((c.i, j))
             }
@@ -141,12 +141,15 @@ fn start_overlaps(world: &World) -> Vec<String> {
             overlapping.len()
         ));
     }
-    if let Some(&(k, w, depth)) = in_wall.first() {
-        // A grain may sit in several walls: count grains, not grain–wall pairs.
+    if let Some(&(k, w, depth)) = in_wall.iter().max_by(|a, b| a.2.total_cmp(&b.2)) {
+        // A grain may touch several walls: count grains, not grain–wall pairs.
         let mut grains: Vec<usize> = in_wall.iter().map(|p| p.0).collect();
+        grains.sort_unstable();
         grains.dedup();
         warnings.push(format!(
-            "{} grain(s) start inside a wall (first: body {k} in wall {w}, {depth:.3e} m deep); they will stay stuck",
+            "{} grain(s) start overlapping a wall by more than 1 % of their radius (deepest: body {k} in wall {w}, \
+             {depth:.3e} m); the overlaps stay (a grain may still slide, roll or leave; one whose centre is past a \
+             wall's line is taken to be on its far side)",
             grains.len()
         ));
     }
