@@ -252,3 +252,15 @@ fn a_jammed_interior_point_tries_again_and_solves_every_small_deposit() {
     }
     assert!(second_tries >= 1, "no deposit took the second try: pick one that jams");
 }
+
+/// A 250-disk deposit (seed 12) on which both tries above jam: the third, every step centred,
+/// solves it without NLGS (where NLGS after the two tries ends at 2.3e-5 in 20,000 sweeps).
+#[test]
+fn a_deposit_both_tries_jam_on_is_solved_by_a_third_every_step_centred() {
+    let p = deposit_problem(250, 0.3, 12).unwrap();
+    let opts = SolverOptions { tol: 1e-8, max_iter: 1000, ..Default::default() };
+    let rep = solve(&p, SolverKind::InteriorPoint, &opts, None);
+    assert!(rep.converged && rep.error <= 1e-8, "{} ({:e}); {:?}", rep.stop_reason, rep.error, rep.notes);
+    assert!(rep.notes.iter().any(|n| n.contains("a third time from the start")), "{:?}", rep.notes);
+    assert!(!rep.notes.iter().any(|n| n.contains("then NLGS")), "{:?}", rep.notes);
+}

@@ -20,9 +20,10 @@
 //!
 //! Near 1e-10 the barrier's blocks span twenty orders of magnitude and the factorisation fails;
 //! on frictional piles the iteration can also stall (no 1 % gain in 50 steps) in jams, whose way
-//! out depends on the path: such a solve tries once more from the start, each step after a jam
+//! out depends on the path: such a solve tries again from the start, each step after a jam
 //! centred on the current gap (on 48 frictional deposits, 43 solved to 1e-8 where one try solves
-//! 35). Either way NLGS sweeps go on from the better iterate with the rest of the budget: from there they
+//! 35), and, up to 20,000 contacts, a third time with every step centred (45). Either way NLGS
+//! sweeps go on from the best iterate with the rest of the budget: from there they
 //! reach 1e-12 on the Siconos 2,020- and 7,002-contact files, where from zero they cycle at
 //! 5e-7 and 1.6e-8. The report's notes give each part.
 //!
@@ -155,15 +156,20 @@ enum Factor {
 pub fn solve(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>) -> SolveReport {
     let memory = available_memory().map(|bytes| bytes / 2);
     let first = solve_with(p, opts, r0.clone(), Steps::Coupled, memory);
+    let mut jammed = first.jammed();
     let mut ip = first.report;
     let left = |ip: &SolveReport| opts.max_iter.saturating_sub(ip.iterations);
     // A jam's way out depends on the path (rounding alone can change it): a solve that stalled
-    // in jams tries once more from the start, centring each step after a jam, before NLGS.
-    if first.frozen_steps > 0 && ip.stop == StopReason::Stalled && !first.at_floor && left(&ip) > 0 {
+    // in jams tries again from the start, centring more, before NLGS.
+    let retries = if p.n_contacts() <= MAX_CONTACTS_THIRD_TRY { &RETRIES[..] } else { &RETRIES[..1] };
+    for &(steps, how) in retries {
+        if !jammed || left(&ip) == 0 {
+            break;
+        }
         let again = SolverOptions { max_iter: left(&ip), ..opts.clone() };
-        let second = solve_with(p, &again, r0, Steps::CoupledRecentred, memory).report;
-        let note = "again from the start, each step after a jam centred";
-        ip = chained(ip, second, note);
+        let next = solve_with(p, &again, r0.clone(), steps, memory);
+        jammed = next.jammed();
+        ip = chained(ip, next.report, how);
     }
     if ip.converged || left(&ip) == 0 || !matches!(ip.stop, StopReason::Stalled | StopReason::Breakdown) {
         return ip;
@@ -171,6 +177,20 @@ pub fn solve(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>) -> SolveRep
     let finish = nlgs::solve(p, &SolverOptions { max_iter: left(&ip), ..opts.clone() }, ip.r.clone());
     chained(ip, finish, "then NLGS from its iterate")
 }
+
+/// The tries after a first one that jammed, in order, and how each is reported.
+const RETRIES: [(Steps, &str); 2] = [
+    (Steps::CoupledRecentred, "again from the start, each step after a jam centred"),
+    (Steps::CoupledCentred, "a third time from the start, every step centred"),
+];
+
+/// The third try only up to this many contacts: where it fails it costs about a try (120–280
+/// iterations on the deposits), which beside NLGS's finish is little on a few thousand contacts
+/// and a minute or more on the 67,094 of the box compaction's first step.
+const MAX_CONTACTS_THIRD_TRY: usize = 20_000;
+
+/// The least centring σ of every step of the third try.
+const THIRD_TRY_CENTRING: f64 = 0.5;
 
 /// One report of two parts of a solve, the second `how` it went on after the first (the better
 /// impulses of the two are returned, every part's count and history kept).
@@ -226,6 +246,10 @@ enum Steps {
     /// deposits it solves 40 where the rule solves 33, but takes 44 iterations on the 7,002-contact
     /// Siconos file where the rule takes 35, hence a second try only.
     CoupledRecentred,
+    /// Every step centred at least by [`THIRD_TRY_CENTRING`], fully after a jam: as a first try
+    /// it solves 38 of the 48 deposits in 63 iterations on average where the rule solves 33 in
+    /// 32; after the two tries above it solves 2 of the 5 they leave (BENCHMARKS.md).
+    CoupledCentred,
 }
 
 /// One run of [`solve_with`].
@@ -236,6 +260,13 @@ struct Attempt {
     frozen_steps: usize,
     /// Whether it stopped at the floor of f64 arithmetic, where a second try would stop too.
     at_floor: bool,
+}
+
+impl Attempt {
+    /// Whether it stalled in jams, from which another path may find a way out.
+    fn jammed(&self) -> bool {
+        self.frozen_steps > 0 && self.report.stop == StopReason::Stalled && !self.at_floor
+    }
 }
 
 /// [`solve`] by the given `steps`, its factorisations kept within `memory` bytes (the coupled
@@ -384,7 +415,11 @@ fn solve_with(p: &ContactProblem, opts: &SolverOptions, r0: Vec<f64>, steps: Ste
             }
         };
         let after_jam = lu.is_some() && matches!(factor, Factor::Symmetric);
-        let least_centring = if after_jam && steps == Steps::CoupledRecentred { 1.0 } else { 0.0 };
+        let least_centring = match steps {
+            Steps::CoupledRecentred | Steps::CoupledCentred if after_jam => 1.0,
+            Steps::CoupledCentred => THIRD_TRY_CENTRING,
+            Steps::Coupled | Steps::CoupledRecentred | Steps::Frozen => 0.0,
+        };
         if !mehrotra_direction(&it, gap, m_total, &solve, &mut work, least_centring) {
             if matches!(factor, Factor::Coupled) {
                 // The LU went singular near the end (z/g spans 1e20): the next try is symmetric.
