@@ -264,3 +264,16 @@ fn a_deposit_both_tries_jam_on_is_solved_by_a_third_every_step_centred() {
     assert!(rep.notes.iter().any(|n| n.contains("a third time from the start")), "{:?}", rep.notes);
     assert!(!rep.notes.iter().any(|n| n.contains("then NLGS")), "{:?}", rep.notes);
 }
+
+/// A third try that gets nowhere is stopped after 5/4 of the first try's iterations, and NLGS
+/// goes on from the best iterate: on the 150-disk deposit of seed 10 it then reaches 1e-8.
+#[test]
+fn a_third_try_that_gets_nowhere_is_cut_short_and_nlgs_goes_on() {
+    let p = deposit_problem(150, 0.3, 10).unwrap();
+    let opts = SolverOptions { tol: 1e-8, max_iter: 20_000, ..Default::default() };
+    let rep = solve(&p, SolverKind::InteriorPoint, &opts, None);
+    let third = rep.notes.iter().find(|n| n.contains("a third time")).unwrap_or_else(|| panic!("{:?}", rep.notes));
+    assert!(third.contains("5/4 of the first try's"), "{third}");
+    assert!(rep.notes.iter().any(|n| n.contains("then NLGS from its iterate")), "{:?}", rep.notes);
+    assert!(rep.converged && rep.error <= 1e-8, "{} ({:e}); {:?}", rep.stop_reason, rep.error, rep.notes);
+}
