@@ -73,6 +73,10 @@ pub fn check_start(world: &World, h: f64) -> Result<Vec<String>, String> {
     Ok(warnings)
 }
 
+/// The share of a radius (the smaller one of a pair) beyond which an overlap a grain starts with,
+/// with another grain or with a wall, is warned about (the warnings say "1 %").
+const START_OVERLAP: f64 = 1e-2;
+
 /// Grains outside the walls' bounds, overlapping a wall, or on top of another grain at the start.
 fn start_overlaps(world: &World) -> Vec<String> {
     let b = &world.bodies;
@@ -123,12 +127,12 @@ fn start_overlaps(world: &World) -> Vec<String> {
     let (mut in_wall, mut coincident, mut overlapping) = (Vec::new(), Vec::new(), Vec::new());
     for c in &contacts {
         match c.other {
-            Antagonist::Wall(w) if -c.gap > 1e-2 * b.bounding_radius[c.i] => in_wall.push((c.i, w, -c.gap)),
+            Antagonist::Wall(w) if -c.gap > START_OVERLAP * b.bounding_radius[c.i] => in_wall.push((c.i, w, -c.gap)),
             Antagonist::Body(j) if b.position[c.i].distance(b.position[j]) <= 1e-9 * b.bounding_radius[c.i] => {
                 coincident.push((c.i, j))
             }
             // Moreau–Jean keeps overlaps it starts with (it stops approach, it does not push apart).
-            Antagonist::Body(j) if -c.gap > 1e-2 * b.bounding_radius[c.i].min(b.bounding_radius[j]) => {
+            Antagonist::Body(j) if -c.gap > START_OVERLAP * b.bounding_radius[c.i].min(b.bounding_radius[j]) => {
                 overlapping.push((c.i, j, -c.gap))
             }
             _ => {}
