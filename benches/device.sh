@@ -34,8 +34,8 @@ if ! "$MOREAU" bench --sizes 1000 --repeats 1 2>&1 | grep -q "^GPU: .*Vulkan" ; 
 fi
 
 if [ "${LATTICES:-1}" != 0 ]; then
-    say "W product and Jacobi iteration, lattices of 1k to 1M contacts"
-    timeout 150 "$MOREAU" bench --sizes 1000,10000,100000,1000000 --repeats 200 2>&1 | tee -a "$log"
+    say "W product, Jacobi iteration and NLGS sweep, lattices of 1k to 1M contacts"
+    timeout 240 "$MOREAU" bench --sizes 1000,10000,100000,1000000 --repeats 200 2>&1 | tee -a "$log"
 fi
 
 if [ "${SWEEPS:-1}" != 0 ]; then

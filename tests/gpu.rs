@@ -612,6 +612,34 @@ fn a_gpu_solve_counts_its_checks_and_the_scene_bench_times_its_sweep() {
     assert!(times.len() == 5 && times.iter().all(|t| *t > 0.0 && t.is_finite()), "{stages}");
 }
 
+/// `moreau bench` on lattices times the NLGS sweep on both devices beside the product and the
+/// Jacobi iteration, and its update rates are the contacts over those times.
+#[test]
+fn the_lattice_bench_times_nlgs_sweeps_on_both_devices() {
+    if common::gpu_context().is_none() {
+        return;
+    }
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_moreau"))
+        .args(["bench", "--sizes", "1000", "--repeats", "3"])
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let header = out.lines().find(|l| l.starts_with("| contacts |")).expect("a header");
+    let row = out.lines().find(|l| l.starts_with("| 1001 |")).expect("the 1,001-contact row");
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    assert_eq!(header.split('|').count(), cells.len(), "{header}\n{row}");
+    let micros = |cell: &str| cell.split_whitespace().next().and_then(|v| v.parse::<f64>().ok()).expect(cell);
+    let (cpu_sweep, gpu_sweep) = (micros(cells[8]), micros(cells[9]));
+    let colours: usize = cells[9].split(['(', ')']).nth(1).and_then(|c| c.parse().ok()).expect(cells[9]);
+    assert!(cpu_sweep > 0.0 && gpu_sweep > 0.0 && colours >= 2, "{row}");
+    let rates: Vec<f64> = cells[12].split(',').map(|v| v.trim().parse().expect(v)).collect();
+    for (rate, micros) in rates.iter().zip([cpu_sweep, gpu_sweep]) {
+        let expected = 1001.0 / (micros * 1e-6);
+        assert!((rate / expected - 1.0).abs() < 0.02, "{rate} against {expected}: {row}");
+    }
+}
+
 #[test]
 fn a_solver_the_gpu_lacks_is_a_clear_error() {
     let Some(ctx) = common::gpu_context() else { return };

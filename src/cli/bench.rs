@@ -1,5 +1,6 @@
 //! `moreau bench`: CPU vs GPU on lattice packings of growing size, as a table — time per W
-//! product and per projected-Jacobi iteration, and optionally the time to reach a tolerance.
+//! product, per projected-Jacobi iteration and per NLGS sweep, and optionally the time to reach a
+//! tolerance.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -78,10 +79,10 @@ pub fn bench_command(a: BenchArgs) -> Result<()> {
         println!("(a software adapter: its column measures the CPU running lavapipe, not a GPU)");
     }
     println!(
-        "| contacts | CPU W product | GPU W product | ratio | CPU Jacobi it | GPU Jacobi it | ratio | CPU contact updates/s | GPU contact updates/s |{}",
+        "| contacts | CPU W product | GPU W product | ratio | CPU Jacobi it | GPU Jacobi it | ratio | CPU NLGS sweep | GPU NLGS sweep (colours) | ratio | contact updates/s, Jacobi: CPU, GPU | NLGS: CPU, GPU |{}",
         if a.solve_to.is_some() { " CPU to tol | GPU to tol |" } else { "" }
     );
-    println!("|---|---|---|---|---|---|---|---|---|{}", if a.solve_to.is_some() { "---|---|" } else { "" });
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|{}", if a.solve_to.is_some() { "---|---|" } else { "" });
     for &size in &a.sizes {
         let (nx, ny) = lattice_of(size);
         let p = lattice_packing(nx, ny, 0.5, 1);
@@ -101,27 +102,52 @@ pub fn bench_command(a: BenchArgs) -> Result<()> {
             jacobi_update(&mut rr, &u, &p.mu, &step);
         }
         let cpu_iteration = start.elapsed().as_secs_f64() / a.repeats as f64;
+        // The solver simulations run: NLGS sweeps (colours or blocks on threads), no check but
+        // the last (a tolerance no sweep count reaches); one sweep's solve taken off, with the
+        // colouring and the check it shares, as the GPU's kernel times leave them out.
+        let sweeps = |n: usize| {
+            let opts = SolverOptions { tol: 1e-300, max_iter: n, ..SolverOptions::default() };
+            solve(&p, SolverKind::Nlgs, &opts, None).seconds
+        };
+        let cpu_sweep = ((sweeps(a.repeats + 1) - sweeps(1)) / a.repeats as f64).max(1e-9);
         let times = match ctx {
-            Some(c) => Some(kernel_times(c, &p, a.repeats)?),
+            Some(c) => Some((kernel_times(c, &p, a.repeats)?, nlgs_sweep_times(c, &p, a.repeats, 0)?)),
             None => None,
         };
         let fmt = |s: f64| format!("{:.1} µs", s * 1e6);
-        let (gp, gi, rp, ri, gu) = match &times {
-            Some(t) => (
+        let ratio = |cpu: f64, gpu: f64| format!("{:.2}x", cpu / gpu);
+        let rate = |seconds: f64| format!("{:.2e}", nc as f64 / seconds);
+        let (gp, gi, gs, rp, ri, rs, gu, gsu) = match &times {
+            Some((t, s)) => (
                 fmt(t.product),
                 fmt(t.jacobi_iteration),
-                format!("{:.2}x", cpu_product / t.product),
-                format!("{:.2}x", cpu_iteration / t.jacobi_iteration),
-                format!("{:.2e}", nc as f64 / t.jacobi_iteration),
+                format!("{} ({})", fmt(s.sweep), s.colours),
+                ratio(cpu_product, t.product),
+                ratio(cpu_iteration, t.jacobi_iteration),
+                ratio(cpu_sweep, s.sweep),
+                rate(t.jacobi_iteration),
+                rate(s.sweep),
             ),
-            None => ("–".into(), "–".into(), "–".into(), "–".into(), "–".into()),
+            None => Default::default(),
         };
-        // A contact update: one contact's share of a Jacobi iteration (product, projection).
-        let cu = format!("{:.2e}", nc as f64 / cpu_iteration);
+        let none = |cell: String| if cell.is_empty() { "–".to_string() } else { cell };
+        // A contact update: one contact's share of a Jacobi iteration (product, projection) or of
+        // an NLGS sweep (its local solve and its bodies' velocities).
         let mut row = format!(
-            "| {nc} | {} | {gp} | {rp} | {} | {gi} | {ri} | {cu} | {gu} |",
+            "| {nc} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {}, {} | {}, {} |",
             fmt(cpu_product),
-            fmt(cpu_iteration)
+            none(gp),
+            none(rp),
+            fmt(cpu_iteration),
+            none(gi),
+            none(ri),
+            fmt(cpu_sweep),
+            none(gs),
+            none(rs),
+            rate(cpu_iteration),
+            none(gu),
+            rate(cpu_sweep),
+            none(gsu)
         );
         if let Some(tol) = a.solve_to {
             let opts = SolverOptions { tol, max_iter: 1_000_000, ..SolverOptions::default() };

@@ -127,7 +127,7 @@ enum Command {
         #[arg(long)]
         strict: bool,
     },
-    /// CPU vs GPU timings (W product, Jacobi iteration) on lattice packings of growing size.
+    /// CPU vs GPU timings (W product, Jacobi iteration, NLGS sweep) on lattice packings of growing size.
     Bench(bench::BenchArgs),
     /// Work-precision data of every solver × device: CSV, plots, performance profiles, table.
     Sweep(sweep::SweepArgs),
