@@ -14,7 +14,7 @@
 // or a value added, so that a host can compare the header it was compiled against
 // (`MOREAU_ABI_VERSION`) with the library it runs with (`moreau_abi_version()`). Fields are
 // added at the end of a struct, values at the end of an enum.
-#define MOREAU_ABI_VERSION 3
+#define MOREAU_ABI_VERSION 4
 
 // What a call did.
 typedef enum MoreauStatus {
@@ -202,6 +202,10 @@ typedef struct MoreauStepReport {
   // GPU dispatches and bytes moved between CPU and GPU (0 on the CPU).
   uint64_t gpu_dispatches;
   uint64_t gpu_bytes;
+  // Energy the contacts dissipated in the step, and the work moving walls and driven bodies did
+  // on the grains through them (J).
+  double dissipated_energy;
+  double boundary_work;
 } MoreauStepReport;
 
 // One contact of the last step.

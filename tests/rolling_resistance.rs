@@ -92,6 +92,24 @@ fn a_disk_rolling_on_a_floor_stops_after_three_v0_squared_over_four_eta_g() {
     assert!((distance - 0.5).abs() < 1e-9 && (speed - 1.0).abs() < 1e-9, "{distance} m at {speed} m/s");
 }
 
+/// Rolling without slipping, the disk loses its kinetic energy through its contact's rolling
+/// row: what the steps report dissipated is all of it.
+#[test]
+fn a_disk_rolling_to_rest_dissipates_its_kinetic_energy_at_its_contact() {
+    let (v0, eta) = (2.0, 0.2);
+    let steps = (1.3 * v0 / (2.0 / 3.0 * eta * G) / 1e-3) as usize;
+    let (mut sim, _) = simulation(&incline(0.0, v0, eta, ALL, steps));
+    let k0 = sim.world.kinetic_energy();
+    let mut dissipated = 0.0;
+    for _ in 0..steps {
+        let r = sim.step().unwrap();
+        assert!(r.converged && r.dissipated_energy >= -1e-15 * k0 && r.boundary_work == 0.0, "{r:?}");
+        dissipated += r.dissipated_energy;
+    }
+    assert!(sim.world.kinetic_energy() < 1e-12 * k0, "still moving");
+    assert!((dissipated - k0).abs() <= 1e-9 * k0, "dissipated {dissipated} J of {k0} J");
+}
+
 #[test]
 fn on_an_incline_a_disk_stays_while_tan_theta_is_below_eta_and_rolls_beyond() {
     let eta = 0.05;

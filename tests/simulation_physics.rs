@@ -606,3 +606,86 @@ fn a_grain_started_into_the_floor_keeps_its_overlap_and_slides() {
     assert!((sim.velocity(0).x - v).abs() < 1e-9, "slides at {}, not {v}", sim.velocity(0));
     assert!((sim.position(0).y - y0).abs() < 1e-12, "the overlap changed: y = {}", sim.position(0).y);
 }
+
+/// A disk sliding to rest on a fixed floor (no rotation) loses its kinetic energy through its
+/// contact: each step dissipates μ m g h v̄, and in all ½ m v₀².
+#[test]
+fn a_disk_sliding_to_rest_dissipates_its_kinetic_energy_by_friction() {
+    let (mu, g, h, v0) = (0.3, 9.81, 1e-3, 1.0);
+    let toml = format!(
+        "{}\n[[wall]]\nsegment = [[-5.0, 0.0], [5.0, 0.0]]\n[[body]]\ndisk = {{ center = [0.0, 0.1], radius = 0.1 }}\n\
+         velocity = [{v0:?}, 0.0]\n",
+        header(r#""gravity", "friction""#, 500, mu, 1000.0)
+    );
+    let (mut sim, steps) = simulation(&toml);
+    let (k0, mass) = (sim.world.kinetic_energy(), sim.world.bodies.mass[0]);
+    let mut dissipated = 0.0;
+    for _ in 0..steps {
+        let before = sim.velocity(0).x;
+        let r = sim.step().unwrap();
+        assert!(r.converged && r.boundary_work == 0.0, "step {}: {r:?}", r.step);
+        let after = sim.velocity(0).x;
+        if after >= mu * g * h {
+            let expected = mu * mass * g * h * 0.5 * (before + after);
+            assert!((r.dissipated_energy - expected).abs() <= 1e-9 * expected, "step {}: {r:?}", r.step);
+        }
+        dissipated += r.dissipated_energy;
+    }
+    assert!(sim.velocity(0).length() < 1e-12 && (k0 - 0.5 * mass * v0 * v0).abs() < 1e-12 * k0);
+    assert!((dissipated - k0).abs() <= 1e-9 * k0, "dissipated {dissipated} J of {k0} J");
+}
+
+/// With θ = ½ a step's change of kinetic and potential energy is the work of its impulses at the
+/// mean velocity: the pile loses what its contacts dissipate, and gains what the wall pushing it
+/// does, step by step, in every step the position projection leaves alone.
+#[test]
+fn a_pushed_pile_changes_its_energy_by_the_walls_work_less_what_its_contacts_dissipate() {
+    let scene = pile(120, 150, 1e-6, 0.0, r#""gravity", "friction", "rotation", "moving_walls""#).replace(
+        "container = { min = [0.0, 0.0], max = [0.06, 0.3] }",
+        "segment = [[-0.1, 0.0], [0.2, 0.0]]\n[[wall]]\nsegment = [[0.0, 0.3], [0.0, 0.0]]\n\
+         [[wall]]\nsegment = [[0.06, 0.0], [0.06, 0.3]]\nvelocity = [-0.02, 0.0]",
+    );
+    let (mut sim, steps) = simulation(&scene);
+    let scale = sim.world.potential_energy().abs();
+    let mut energy = sim.world.kinetic_energy() + sim.world.potential_energy();
+    let (mut dissipated, mut work, mut checked) = (0.0, 0.0, 0);
+    for _ in 0..steps {
+        let r = sim.step().unwrap();
+        let now = r.kinetic_energy + r.potential_energy;
+        if r.projected == 0 {
+            let imbalance = now - energy + r.dissipated_energy - r.boundary_work;
+            assert!(imbalance.abs() <= 1e-12 * scale, "step {}: {imbalance:e} J of {scale} J: {r:?}", r.step);
+            checked += 1;
+        }
+        (energy, dissipated, work) = (now, dissipated + r.dissipated_energy, work + r.boundary_work);
+    }
+    assert!(checked >= steps * 9 / 10, "{checked} of {steps} steps checked");
+    assert!(dissipated > 0.1 * scale && work > 0.0, "dissipated {dissipated} J, the wall's work {work} J");
+}
+
+/// A belt brings a grain resting on it to its speed V by friction: it does m V² of work, half of
+/// it the grain's kinetic energy and half dissipated at the contact — for a belt that is a fixed
+/// body given a velocity and for one that is a moving wall.
+#[test]
+fn a_belt_gives_a_grain_its_speed_and_dissipates_as_much_as_it_gives() {
+    let wall_belt = format!(
+        "{}\n[[wall]]\nsegment = [[-5.0, 0.0], [5.0, 0.0]]\nvelocity = [1.0, 0.0]\n[[body]]\n\
+         disk = {{ center = [0.0, 0.1], radius = 0.1 }}\n",
+        header(r#""gravity", "friction", "moving_walls""#, 1000, 0.2, 1000.0)
+    );
+    for (name, text, grain) in [("fixed body", conveyor(r#""gravity", "friction""#), 1), ("wall", wall_belt, 0)] {
+        let (mut sim, steps) = simulation(&text);
+        let mass = sim.world.bodies.mass[grain];
+        let (mut dissipated, mut work) = (0.0, 0.0);
+        for _ in 0..steps {
+            let r = sim.step().unwrap();
+            let round_off = -1e-12 * mass;
+            assert!(r.converged && r.dissipated_energy >= round_off && r.boundary_work >= round_off, "{name}: {r:?}");
+            (dissipated, work) = (dissipated + r.dissipated_energy, work + r.boundary_work);
+        }
+        let v = sim.velocity(grain).x;
+        assert!((v - 1.0).abs() < 1e-5, "{name}: the grain moves at {v}");
+        assert!((work - mass).abs() < 1e-4 * mass, "{name}: the belt's work {work} J, m V² = {mass} J");
+        assert!((dissipated - 0.5 * mass).abs() < 1e-4 * mass, "{name}: dissipated {dissipated} J of {} J", 0.5 * mass);
+    }
+}

@@ -152,6 +152,10 @@ pub struct MoreauStepReport {
     /// GPU dispatches and bytes moved between CPU and GPU (0 on the CPU).
     pub gpu_dispatches: u64,
     pub gpu_bytes: u64,
+    /// Energy the contacts dissipated in the step, and the work moving walls and driven bodies did
+    /// on the grains through them (J).
+    pub dissipated_energy: f64,
+    pub boundary_work: f64,
 }
 
 /// Why a solve stopped.
@@ -381,7 +385,7 @@ pub extern "C" fn moreau_last_error() -> *const c_char {
 /// or a value added, so that a host can compare the header it was compiled against
 /// (`MOREAU_ABI_VERSION`) with the library it runs with (`moreau_abi_version()`). Fields are
 /// added at the end of a struct, values at the end of an enum.
-pub const MOREAU_ABI_VERSION: u32 = 3;
+pub const MOREAU_ABI_VERSION: u32 = 4;
 
 /// The `MOREAU_ABI_VERSION` this library was built with.
 #[no_mangle]
@@ -1117,6 +1121,8 @@ pub extern "C" fn moreau_simulation_step(sim: *mut MoreauSimulation, report: *mu
             projection_seconds: r.projection_seconds,
             gpu_dispatches: r.gpu_dispatches,
             gpu_bytes: r.gpu_bytes,
+            dissipated_energy: r.dissipated_energy,
+            boundary_work: r.boundary_work,
         };
         copy_out(&[out], report, 1, "report")
     })

@@ -88,8 +88,10 @@ int main(int argc, char **argv) {
            bodies, count, unconverged);
     printf("last step: iterations %zu error %.3e max_penetration %.3e velocity_scale %.9e top %.6f sum_rn %.9e\n",
            report.iterations, report.error, report.max_penetration, report.velocity_scale, top, normal_sum);
-    printf("last step: stop %d warm_started %zu projected %zu kinetic_energy %.17g potential_energy %.17g\n",
-           (int)report.stop, report.warm_started, report.projected, report.kinetic_energy, report.potential_energy);
+    printf("last step: stop %d warm_started %zu projected %zu kinetic_energy %.17g potential_energy %.17g "
+           "dissipated_energy %.17g boundary_work %.17g\n",
+           (int)report.stop, report.warm_started, report.projected, report.kinetic_energy, report.potential_energy,
+           report.dissipated_energy, report.boundary_work);
     printf("last step: seconds %.6f detection %.6f solve %.6f projection %.6f\n", report.seconds,
            report.detection_seconds, report.solve_seconds, report.projection_seconds);
     free(xy);

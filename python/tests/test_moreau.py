@@ -191,6 +191,7 @@ def test_a_scene_stepped_from_python_matches_the_command_line_step_by_step(tmp_p
         assert report["step"] == int(row["step"])
         assert report["contacts"] == int(row["contacts"]) and report["iterations"] == int(row["iterations"])
         assert report["kinetic_energy"] == pytest.approx(float(row["kinetic_energy"]), rel=1e-12, abs=0.0)
+        assert report["dissipated_energy"] == pytest.approx(float(row["dissipated_energy"]), rel=1e-12, abs=1e-300)
         assert report["max_penetration"] == pytest.approx(float(row["max_penetration"]), rel=1e-12, abs=1e-300)
         assert report["velocity_scale"] == pytest.approx(float(row["velocity_scale"]), rel=1e-12, abs=1e-300)
         measures = sim.measures()

@@ -29,6 +29,8 @@ struct Row {
     max_penetration: f64,
     kinetic_energy: f64,
     potential_energy: f64,
+    dissipated_energy: f64,
+    boundary_work: f64,
     packing_fraction: f64,
     coordination: f64,
     rattlers: usize,
@@ -166,6 +168,11 @@ pub struct RunSummary {
     pub max_penetration_per_diameter: f64,
     /// Kinetic energy at the end (J).
     pub final_kinetic_energy: f64,
+    /// Energy the contacts dissipated over the run, and the work moving walls and driven bodies
+    /// did on the grains through them (J; each step's in steps.csv).
+    pub dissipated_energy: f64,
+    /// See `dissipated_energy`.
+    pub boundary_work: f64,
     /// Simulated time at the end (s).
     pub final_time: f64,
     /// Contacts found overlapping at the end of a step that its start missed (grains kicked
@@ -204,6 +211,8 @@ impl RunSummary {
         self.last_contacts = r.contacts;
         self.max_penetration = self.max_penetration.max(r.max_penetration);
         self.final_kinetic_energy = r.kinetic_energy;
+        self.dissipated_energy += r.dissipated_energy;
+        self.boundary_work += r.boundary_work;
         self.missed_contacts += r.missed;
         self.projected_steps += usize::from(r.projected > 0);
         self.final_time = r.time;
@@ -390,6 +399,8 @@ impl RunOutput {
             max_penetration: r.max_penetration,
             kinetic_energy: r.kinetic_energy,
             potential_energy: r.potential_energy,
+            dissipated_energy: r.dissipated_energy,
+            boundary_work: r.boundary_work,
             packing_fraction: m.packing_fraction,
             coordination: m.coordination,
             neighbours: m.neighbours,

@@ -564,6 +564,31 @@ impl MatrixFree {
         self.colouring.get_or_init(|| Colouring::matrix_free_greedy(self))
     }
 
+    /// Body `k`'s inverse mass per velocity (x, y, spin): 0 where the impulses cannot move it (a
+    /// fixed body, a held axis, a body that does not turn).
+    fn dof_inv_mass(&self, k: usize) -> [f64; 3] {
+        let b = self.bodies[k];
+        let [mx, my] = self.axis_inv_mass(k, b);
+        [mx, my, b.inv_inertia]
+    }
+
+    /// The impulses' power `(Bᵀ r)·v` into the velocities they move, from `dv = M⁻¹ Bᵀ r`:
+    /// `Σ (M dv)·v` over those velocities, `v(i)` the velocity of index `i` as they are stored;
+    /// and `v` where the impulses cannot move the bodies (fixed bodies, held axes, bodies that do
+    /// not turn), zero elsewhere, `None` when that part is zero throughout (nothing is driven).
+    pub fn impulse_power(&self, dv: &[f64], v: impl Fn(usize) -> f64 + Sync + Send) -> (f64, Option<Vec<f64>>) {
+        let s = self.dofs.per_body();
+        let [power, driven] = crate::parallel::chunked_sums(self.bodies.len(), |k| {
+            let inv = self.dof_inv_mass(k);
+            (0..s).fold([0.0, 0.0], |[power, driven], d| match inv[d] > 0.0 {
+                true => [power + dv[s * k + d] / inv[d] * v(s * k + d), driven],
+                false => [power, driven + f64::from(u8::from(v(s * k + d) != 0.0))],
+            })
+        });
+        let unmoved = |i: usize| if self.dof_inv_mass(i / s)[i % s] == 0.0 { v(i) } else { 0.0 };
+        (power, (driven > 0.0).then(|| map_indices(s * self.bodies.len(), unmoved)))
+    }
+
     /// Which bodies can move (a contact between two of them conflicts in a Gauss–Seidel sweep).
     pub fn moving(&self) -> Vec<bool> {
         self.bodies.iter().map(|b| *b != Body::fixed()).collect()

@@ -169,6 +169,69 @@ fn applied_velocity_step(v_begin: &[f64], v_free: &[f64], dofs: Dofs) -> f64 {
     max_over(v_begin.len() / s, change)
 }
 
+/// A contact's antagonist's material, and a moving wall's velocity at the contact point and its
+/// spin (zero against a body, or without `moving_walls`).
+fn antagonist(world: &World, c: &DetectedContact) -> (usize, DVec2, f64) {
+    match c.other {
+        Antagonist::Body(j) => (world.bodies.material[j] as usize, DVec2::ZERO, 0.0),
+        Antagonist::Wall(w) => {
+            let wall = &world.walls[w];
+            match world.effects.moving_walls {
+                true => (wall.material, wall.velocity_at(c.point), wall.spin),
+                false => (wall.material, DVec2::ZERO, 0.0),
+            }
+        }
+    }
+}
+
+/// The energy the step's contacts dissipate and the work moving walls and driven bodies do on the
+/// grains through them (J): `D = −Σ r·ū` and `W`, where `ū = B v̄ − w` is a contact's relative
+/// velocity (normal, tangential, rolling) at the bodies' mean velocity `v̄ = ½(v⁻ + v⁺)` over
+/// the step and `w` its wall's motion. `Σ r·B v̄` splits into the power into the velocities the
+/// impulses move, `Σ (M Δv)·v̄` (a pass over the bodies), and into those driven or fixed, which
+/// with the walls' `Σ r·w` is `W` (a pass over the contacts, made only when something is driven
+/// or a wall moves): `D = W − Σ (M Δv)·v̄`. With θ = ½ the step's change of kinetic and
+/// gravity's potential energy is that power, `ΔK + ΔP = W − D`, when no other force acts and the
+/// position projection moves nothing (`tests/simulation_physics.rs`).
+fn contact_energies(
+    world: &World,
+    op: &MatrixFree,
+    contacts: &[DetectedContact],
+    r: &[f64],
+    (v_begin, v_free, dv): (&[f64], &[f64], &[f64]),
+) -> [f64; 2] {
+    let mean = |i: usize| 0.5 * (v_begin[i] + v_free[i] + dv[i]);
+    let (moved, driven) = op.impulse_power(dv, mean);
+    let walls_move =
+        world.effects.moving_walls && world.walls.iter().any(|w| w.velocity != DVec2::ZERO || w.spin != 0.0);
+    if driven.is_none() && !walls_move {
+        return [-moved, 0.0];
+    }
+    let (nc, rolling, friction) = (contacts.len(), op.has_rolling(), world.effects.friction);
+    let work = crate::parallel::chunked_sum(nc, |a| {
+        let c = &contacts[a];
+        let rr = if rolling { r[2 * nc + a] } else { 0.0 };
+        let mut work = 0.0;
+        if let Some(v) = &driven {
+            // The impulses' power into driven velocities, which their drive takes up.
+            let u = op.gather_one(a, v.as_slice());
+            work -= r[2 * a] * u[0] + if friction { r[2 * a + 1] * u[1] } else { 0.0 };
+            if rolling {
+                work -= rr * op.gather_rolling(a, v.as_slice());
+            }
+        }
+        if let (true, Antagonist::Wall(_)) = (walls_move, c.other) {
+            let (_, velocity, spin) = antagonist(world, c);
+            work += r[2 * a] * c.normal.dot(velocity) + if rolling { rr * op.rolling_radius(a) * spin } else { 0.0 };
+            if friction {
+                work += r[2 * a + 1] * c.normal.perp().dot(velocity);
+            }
+        }
+        work
+    });
+    [work - moved, work]
+}
+
 /// The step's contact problem, in cohesion-shifted impulses r' = r + c e_n (`shift`, empty
 /// without cohesion), and the warm start `r0` moved the same way.
 fn local_problem(
@@ -182,17 +245,7 @@ fn local_problem(
     let effects = world.effects;
     let nc = contacts.len();
     let unknowns = op.unknowns();
-    // The antagonist's material, and a moving wall's velocity at the contact point and its spin.
-    let antagonist = |c: &DetectedContact| match c.other {
-        Antagonist::Body(j) => (world.bodies.material[j] as usize, DVec2::ZERO, 0.0),
-        Antagonist::Wall(w) => {
-            let wall = &world.walls[w];
-            match effects.moving_walls {
-                true => (wall.material, wall.velocity_at(c.point), wall.spin),
-                false => (wall.material, DVec2::ZERO, 0.0),
-            }
-        }
-    };
+    let antagonist = |c: &DetectedContact| antagonist(world, c);
     let law_with =
         |c: &DetectedContact, other: usize| world.materials.interaction(world.bodies.material[c.i] as usize, other);
     // The (n, t) rows: q = B v_free less the wall's velocity, plus the gap term or the impact,
@@ -484,7 +537,7 @@ fn apply(
     let effects = sim.world.effects;
     let dofs = Dofs { rotation: effects.rotation, friction: effects.friction };
     let extent = sim.extent();
-    let Assembled { detected, reach, v_free, problem, shift, mut detection_seconds, .. } = assembled;
+    let Assembled { detected, reach, v_begin, v_free, problem, shift, mut detection_seconds, .. } = assembled;
     let mut report = StepReport {
         step,
         time: sim.time + h,
@@ -503,6 +556,8 @@ fn apply(
         max_penetration: 0.0,
         kinetic_energy: 0.0,
         potential_energy: 0.0,
+        dissipated_energy: 0.0,
+        boundary_work: 0.0,
         seconds: 0.0,
         detection_seconds,
         solve_seconds: 0.0,
@@ -536,7 +591,9 @@ fn apply(
             *r -= c;
         }
         let Delassus::MatrixFree(op) = &local.w else { unreachable!("the step builds a matrix-free problem") };
-        dv = Some(kept.unwrap_or_else(|| op.body_velocities(&impulses)));
+        let dv = dv.insert(kept.unwrap_or_else(|| op.body_velocities(&impulses)));
+        [report.dissipated_energy, report.boundary_work] =
+            contact_energies(&sim.world, op, &detected, &impulses, (&v_begin, &v_free, dv));
     }
 
     // 5. Update, then 6. projection of what the θ-update pushed in: on the start's contacts

@@ -149,6 +149,15 @@ pub struct StepReport {
     pub kinetic_energy: f64,
     /// Potential energy in gravity at the end of the step (J).
     pub potential_energy: f64,
+    /// Energy the contacts dissipated in the step (J): `−Σ r·ū` over them, `ū` a contact's
+    /// relative velocity (normal, tangential, rolling) at the bodies' mean velocity over the step
+    /// `½(v⁻ + v⁺)`, a moving wall's or a driven body's motion included. Friction and plastic
+    /// impacts make it positive. With θ = ½, `ΔK + ΔP = boundary_work − dissipated_energy` in a
+    /// step where no force but gravity acts and the position projection moves nothing.
+    pub dissipated_energy: f64,
+    /// Work done on the grains in the step through their contacts by moving walls and driven
+    /// bodies (fixed bodies given a velocity, held axes) (J).
+    pub boundary_work: f64,
     /// Wall time of the whole step, and of its detection and solve parts.
     pub seconds: f64,
     /// Detection time (s).
