@@ -330,7 +330,7 @@ class Simulation:
 
     def step(self) -> Dict[str, Any]:
         """Advances one step; returns its report (contacts, iterations, error, converged,
-        stop_reason, max_penetration, seconds, …). A step that blows up raises MoreauError and
+        stop_reason, max_penetration, kinetic_energy, dissipated_energy, boundary_work, seconds, …). A step that blows up raises MoreauError and
         the simulation keeps its last good state. The first step checks the world (:meth:`check`)."""
         if not self._checked:
             self._check(stacklevel=3)
