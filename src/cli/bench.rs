@@ -117,8 +117,8 @@ pub fn bench_command(a: BenchArgs) -> Result<()> {
         let fmt = |s: f64| format!("{:.1} µs", s * 1e6);
         let ratio = |cpu: f64, gpu: f64| format!("{:.2}x", cpu / gpu);
         let rate = |seconds: f64| format!("{:.2e}", nc as f64 / seconds);
-        let (gp, gi, gs, rp, ri, rs, gu, gsu) = match &times {
-            Some((t, s)) => (
+        let [gp, gi, gs, rp, ri, rs, gu, gsu]: [String; 8] = match &times {
+            Some((t, s)) => [
                 fmt(t.product),
                 fmt(t.jacobi_iteration),
                 format!("{} ({})", fmt(s.sweep), s.colours),
@@ -127,27 +127,18 @@ pub fn bench_command(a: BenchArgs) -> Result<()> {
                 ratio(cpu_sweep, s.sweep),
                 rate(t.jacobi_iteration),
                 rate(s.sweep),
-            ),
-            None => Default::default(),
+            ],
+            None => std::array::from_fn(|_| "–".into()),
         };
-        let none = |cell: String| if cell.is_empty() { "–".to_string() } else { cell };
         // A contact update: one contact's share of a Jacobi iteration (product, projection) or of
         // an NLGS sweep (its local solve and its bodies' velocities).
         let mut row = format!(
-            "| {nc} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {}, {} | {}, {} |",
+            "| {nc} | {} | {gp} | {rp} | {} | {gi} | {ri} | {} | {gs} | {rs} | {}, {gu} | {}, {gsu} |",
             fmt(cpu_product),
-            none(gp),
-            none(rp),
             fmt(cpu_iteration),
-            none(gi),
-            none(ri),
             fmt(cpu_sweep),
-            none(gs),
-            none(rs),
             rate(cpu_iteration),
-            none(gu),
-            rate(cpu_sweep),
-            none(gsu)
+            rate(cpu_sweep)
         );
         if let Some(tol) = a.solve_to {
             let opts = SolverOptions { tol, max_iter: 1_000_000, ..SolverOptions::default() };
