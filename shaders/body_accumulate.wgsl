@@ -20,29 +20,10 @@ fn main(@builtin(global_invocation_id) grid: vec3<u32>, @builtin(num_workgroups)
     if (k >= arrayLength(&inv_mass)) {
         return;
     }
-    var p = vec2<f32>(0.0, 0.0);
-    var torque = 0.0;
+    var push = vec3<f32>(0.0);
     for (var e = body_start[k]; e < body_start[k + 1u]; e = e + 1u) {
-        let entry = body_list[e];
-        let a = entry & 0x7fffffffu;
-        let is_j = (entry >> 31u) == 1u;
-        let c = contacts[a];
-        let ra = r[a];
-        let s = select(1.0, -1.0, is_j);
-        var f = ra.x * c.n;
-        if (FRICTION) {
-            f = f + ra.y * vec2<f32>(-c.n.y, c.n.x);
-        }
-        p = p + s * f;
-        if (ROTATION) {
-            let g = select(c.levers.xy, c.levers.zw, is_j);
-            var tq = ra.x * g.x;
-            if (FRICTION) {
-                tq = tq + ra.y * g.y;
-            }
-            torque = torque + s * tq;
-        }
+        let a = listed_contact(body_list[e]);
+        push = push + contact_push(contacts[a], r[a], listed_as_j(body_list[e]));
     }
-    let im = inverse_masses(inv_mass[k]);
-    v[k] = vec4<f32>(im.x * p.x, im.y * p.y, im.z * torque, 0.0);
+    v[k] = vec4<f32>(inverse_masses(inv_mass[k]) * push, 0.0);
 }

@@ -103,6 +103,19 @@ fn every_kernel_matches_its_cpu_mirror() {
         cpu::jacobi_update::jacobi_update(&cpu_u, &mu, &step, &mut cpu_r);
         assert_close(gpu_r.as_flattened(), cpu_r.as_flattened(), &format!("{name}: jacobi_update"));
         assert!(cpu_r.iter().zip(&mu).all(|(r, m)| r[0] >= 0.0 && r[1].abs() <= m * r[0] * (1.0 + 1e-6)));
+        // The fused iteration (one dispatch, by body) from (r, v = M⁻¹ Bᵀ r): its mirror is the
+        // three kernels' iteration to the bit, and v of its new impulses.
+        let (r_fused, v_fused) = stages::jacobi_fused(&ctx, &layout, (&q, &mu, &step), (&r, &cpu_v)).unwrap();
+        let (mut cpu_r_fused, mut cpu_v_fused) = (vec![[0.0f32; 2]; nc], vec![[0.0f32; 4]; nb]);
+        cpu::jacobi_fused::jacobi_fused(&layout, &q, &mu, &step, (&r, &cpu_v), &mut cpu_r_fused, &mut cpu_v_fused);
+        assert_close(r_fused.as_flattened(), cpu_r_fused.as_flattened(), &format!("{name}: jacobi_fused r"));
+        assert_close(v_fused.as_flattened(), cpu_v_fused.as_flattened(), &format!("{name}: jacobi_fused v"));
+        let mut v_of_r = vec![[0.0f32; 4]; nb];
+        cpu::body_accumulate::body_accumulate(&layout, &cpu_r, &mut v_of_r);
+        assert!(
+            cpu_r_fused == cpu_r && cpu_v_fused == v_of_r,
+            "{name}: jacobi_fused's mirror is not the three kernels'"
+        );
         // Coloured NLGS, colour by colour, on both forms of W.
         let diag: Vec<[f32; 4]> = p.w.diag_blocks().iter().map(|d| d.map(|x| x as f32)).collect();
         let colouring = Colouring::matrix_free(&layout);
@@ -293,6 +306,31 @@ fn gpu_solvers_solve_what_the_cpu_solves() {
     let again = moreau::gpu::solve(&ctx, p, SolverKind::Jacobi, &opts, Some(&first.r)).unwrap();
     assert!(again.converged && again.iterations <= 16, "warm start took {} iterations", again.iterations);
     let _ = to_f32_pairs(&[0.0, 0.0]);
+}
+
+/// Projected Jacobi on the GPU runs an iteration a dispatch (`jacobi_fused`, over two buffers of
+/// impulses and velocities), so its rounds are pairs of iterations: the report counts
+/// iterations, as the CPU's does, and an odd `max_iter` stops one short and says why.
+#[test]
+fn gpu_jacobi_counts_its_paired_iterations_against_max_iter() {
+    let Some(ctx) = common::gpu_context() else { return };
+    let p = lattice_packing(20, 10, 0.3, 1);
+    for (max_iter, ran) in [(8, 8), (7, 6), (40, 40)] {
+        let opts = SolverOptions { tol: 1e-30, max_iter, ..Default::default() };
+        let run = moreau::gpu::solve(&ctx, &p, SolverKind::Jacobi, &opts, None).unwrap();
+        assert!(
+            !run.converged && run.iterations == ran,
+            "max_iter {max_iter}: {} ({})",
+            run.iterations,
+            run.stop_reason
+        );
+        assert_eq!(2 * run.gpu_checks.rounds, ran, "max_iter {max_iter}: rounds");
+        assert_eq!(run.w_products, ran + 1, "max_iter {max_iter}: products");
+        let noted = run.notes.iter().any(|n| n.contains("run in pairs"));
+        assert_eq!(noted, max_iter % 2 == 1, "max_iter {max_iter}: {:?}", run.notes);
+        let history = run.history.iter().map(|h| h.iteration).collect::<Vec<_>>();
+        assert!(history.iter().all(|&k| k % 2 == 0 && k <= ran), "max_iter {max_iter}: checks at {history:?}");
+    }
 }
 
 /// A GPU solve runs its first batch before it may stop, as the CPU's sweeps run before their

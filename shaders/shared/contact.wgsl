@@ -32,3 +32,32 @@ fn relative_velocity(c: Contact, vi: vec4<f32>, vj: vec4<f32>) -> vec2<f32> {
     }
     return vec2<f32>(un, ut);
 }
+
+// A body→contact list entry (body_accumulate, jacobi_fused): the contact's index, and whether the
+// body is the contact's j (the entry's top bit).
+fn listed_contact(entry: u32) -> u32 {
+    return entry & 0x7fffffffu;
+}
+
+fn listed_as_j(entry: u32) -> bool {
+    return (entry >> 31u) == 1u;
+}
+
+// B_aᵀ r_a as one of contact c's bodies receives it, (p_x, p_y, torque): body i when `is_j` is
+// false, body j (the opposite sign) when it is true.
+fn contact_push(c: Contact, ra: vec2<f32>, is_j: bool) -> vec3<f32> {
+    let s = select(1.0, -1.0, is_j);
+    var f = ra.x * c.n;
+    if (FRICTION) {
+        f = f + ra.y * vec2<f32>(-c.n.y, c.n.x);
+    }
+    var tq = 0.0;
+    if (ROTATION) {
+        let g = select(c.levers.xy, c.levers.zw, is_j);
+        tq = ra.x * g.x;
+        if (FRICTION) {
+            tq = tq + ra.y * g.y;
+        }
+    }
+    return s * vec3<f32>(f, tq);
+}

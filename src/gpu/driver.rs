@@ -49,15 +49,19 @@ pub fn initial_impulses(p: &ContactProblem, r0: Option<&[f64]>) -> Vec<f64> {
 /// when `gpu_plateau_stops` (plain sweeps after a stalled mixing run past plateaus).
 const F32_PLATEAU_CEILING: f64 = 1e-3;
 
-/// What one iteration of a GPU solver does: `W` products (for the report) and sweeps' worth of
-/// work (the batches between checks are counted in sweeps, so that an iteration of several
-/// sweeps, a round of block sweeps, is not run as far past tol as the same count of sweeps).
+/// What one round of a GPU solver (one call of its `record`) does: `W` products (for the report),
+/// sweeps' worth of work (the batches between checks are counted in sweeps, so that a round of
+/// several sweeps, a round of block sweeps, is not run as far past tol as the same count of
+/// sweeps) and the iterations it counts as.
 #[derive(Clone)]
 pub struct PerIteration {
-    /// `W` products (or their equivalent) an iteration makes.
+    /// `W` products (or their equivalent) an iteration, as reported, makes.
     pub products: usize,
-    /// Sweeps' worth of contact updates an iteration makes.
+    /// Sweeps' worth of contact updates a round makes.
     pub sweeps: usize,
+    /// Iterations a round counts as in the report and against `max_iter`: 1, or 2 for projected
+    /// Jacobi's pair of one-dispatch iterations (`jacobi_fused`, which alternates two buffers).
+    pub iterations: usize,
     /// The work list's thresholded sweeps: the count of contacts they updated (one u32,
     /// cumulative). The solve's iterations are then sweeps' worth of those updates, as on the
     /// CPU's list, and its rounds are bounded by [`ROUNDS_PER_COUNTED_ITERATION`] × `max_iter`.
@@ -67,7 +71,7 @@ pub struct PerIteration {
 impl PerIteration {
     /// An iteration of `products` products and one sweep's worth of work.
     pub fn products(products: usize) -> Self {
-        Self { products, sweeps: 1, updates: None }
+        Self { products, sweeps: 1, iterations: 1, updates: None }
     }
 }
 
@@ -103,6 +107,8 @@ pub fn iterate(
     record: impl Fn(&mut wgpu::ComputePass),
 ) -> Result<SolveReport, GpuError> {
     let products_per_iteration = per_iteration.products;
+    // Iterations a round counts as (a round of counted updates counts by its updates instead).
+    let per_round = per_iteration.iterations.max(1);
     // A batch of `sweeps` sweeps' worth, in iterations.
     let iterations_of = |sweeps: usize| (sweeps / per_iteration.sweeps.max(1)).max(1);
     let checker = Checker::new(ctx, p, gp, r_buf, opts.criterion, per_iteration.updates.clone());
@@ -110,19 +116,19 @@ pub fn iterate(
     let counting = per_iteration.updates.is_some();
     let rounds_cap = match counting {
         true => opts.max_iter.saturating_mul(ROUNDS_PER_COUNTED_ITERATION),
-        false => opts.max_iter,
+        false => opts.max_iter / per_round,
     };
     let contacts = p.n_contacts().max(1) as u64;
     let (mut updates, mut last_count, mut idle_check) = (0u64, 0u32, false);
     // Iterations as reported after `rounds` rounds with `updates` counted.
     let spent_after = |rounds: usize, updates: u64| match counting {
         true => updates.div_ceil(contacts) as usize,
-        false => rounds,
+        false => rounds * per_round,
     };
     // The next batch from round `at`, at most `spent` iterations spent by then: a round may
     // update every contact (a sweep's worth), so a batch stays within max_iter whatever it updates.
     let batch_from = |batch: usize, at: usize, spent: usize| {
-        iterations_of(batch).min(rounds_cap - at).min(opts.max_iter.saturating_sub(spent))
+        iterations_of(batch).min(rounds_cap - at).min(opts.max_iter.saturating_sub(spent) / per_round)
     };
     let run_batch = |k: usize| {
         submit(ctx, kind.name(), |pass| {
@@ -160,7 +166,7 @@ pub fn iterate(
         if error <= opts.tol {
             return Some((StopReason::Converged, format!("converged: error {error:.3e} <= tol {:.1e}", opts.tol)));
         }
-        if spent >= opts.max_iter {
+        if spent + per_round > opts.max_iter {
             return Some((StopReason::MaxIter, format!("not converged: max_iter = {} reached", opts.max_iter)));
         }
         if iterations >= rounds_cap {
@@ -203,7 +209,7 @@ pub fn iterate(
                 // sweeps while they travel back and the CPU reads them.
                 // `iterations` and `updates` are still the last check's: the rounds since may
                 // each have been a sweep's worth.
-                let mut ahead = batch_from(batch, at, spent_after(iterations, updates) + (at - iterations));
+                let mut ahead = batch_from(batch, at, spent_after(iterations, updates) + (at - iterations) * per_round);
                 if ahead > 0 {
                     run_batch(ahead);
                 }
@@ -216,7 +222,7 @@ pub fn iterate(
                     last_count = count;
                 }
                 if !estimate.is_finite() {
-                    checks.discarded = ahead;
+                    checks.discarded = ahead * per_round;
                     judged_last = false;
                     break (StopReason::Diverged, "diverged: non-finite impulses".to_string());
                 }
@@ -258,7 +264,7 @@ pub fn iterate(
                 };
                 if let Some(stop) = stop_at(error, iterations, spent, idle_check, &stall) {
                     // Run past this check and not used: its impulses are returned.
-                    checks.discarded = ahead;
+                    checks.discarded = ahead * per_round;
                     break stop;
                 }
                 if ahead == 0 {

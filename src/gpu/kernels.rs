@@ -75,6 +75,8 @@ pub struct Kernels {
     pub bsr_product: Kernel,
     /// The `jacobi_update` kernel.
     pub jacobi_update: Kernel,
+    /// The `jacobi_fused` kernel.
+    pub jacobi_fused: Kernel,
     /// The `nlgs_colour` kernel.
     pub nlgs_colour: Kernel,
     /// The `nlgs_colour_bsr` kernel.
@@ -129,11 +131,12 @@ const MODULES: [(&str, &str); 8] = [
 
 /// Every kernel: name, WGSL (before composition), and whether it is specialised by the
 /// rotation and friction constants.
-pub const KERNELS: [(&str, &str, bool); 23] = [
+pub const KERNELS: [(&str, &str, bool); 24] = [
     ("body_accumulate", include_str!("../../shaders/body_accumulate.wgsl"), true),
     ("contact_gather", include_str!("../../shaders/contact_gather.wgsl"), true),
     ("bsr_product", include_str!("../../shaders/bsr_product.wgsl"), false),
     ("jacobi_update", include_str!("../../shaders/jacobi_update.wgsl"), false),
+    ("jacobi_fused", include_str!("../../shaders/jacobi_fused.wgsl"), true),
     ("nlgs_colour", include_str!("../../shaders/nlgs_colour.wgsl"), true),
     ("nlgs_colour_bsr", include_str!("../../shaders/nlgs_colour_bsr.wgsl"), false),
     ("nlgs_blocks", include_str!("../../shaders/nlgs_blocks.wgsl"), true),
@@ -196,6 +199,7 @@ impl Kernels {
             contact_gather: k("contact_gather"),
             bsr_product: k("bsr_product"),
             jacobi_update: k("jacobi_update"),
+            jacobi_fused: k("jacobi_fused"),
             nlgs_colour: k("nlgs_colour"),
             nlgs_colour_bsr: k("nlgs_colour_bsr"),
             nlgs_blocks: k("nlgs_blocks"),

@@ -276,7 +276,8 @@ pub fn solve(
     let mixer = (depth > 0).then(|| GpuAnderson::new(ctx, &gp, &r32, &r_buf, depth, sweep.velocities()));
     // A round of block sweeps does `block_sweeps` sweeps of each block.
     let sweeps = if blocked { opts.block_sweeps } else { 1 };
-    let per_iteration = PerIteration { products: sweeps, sweeps, updates: sweep.update_counter().cloned() };
+    let per_iteration =
+        PerIteration { products: sweeps, sweeps, iterations: 1, updates: sweep.update_counter().cloned() };
     let mut report = iterate(ctx, p, &gp, opts, SolverKind::Nlgs, start, r, &r_buf, per_iteration, |pass| {
         sweep.record(pass);
         if let Some(mixer) = &mixer {

@@ -18,19 +18,25 @@ fn named<'a>(buffers: &'a [GpuBuffer], names: &[&'static str]) -> Vec<(&'static 
     names.iter().copied().zip(buffers).collect()
 }
 
-/// Runs `body_accumulate` alone (compared with its mirror in the tests).
-pub fn body_accumulate(ctx: &GpuContext, op: &MatrixFreeLayout, r: &[[f32; 2]]) -> Result<Vec<[f32; 4]>, GpuError> {
-    let k = ctx.kernels(op.rotation, op.friction);
-    let bufs = [
+/// The body pass's operator buffers (contacts, body→contact lists, inverse masses), named as the
+/// kernels that walk each body's contacts bind them.
+const BODY_PASS: [&str; 4] = ["contacts", "body_start", "body_list", "inv_mass"];
+
+fn body_pass_buffers(ctx: &GpuContext, op: &MatrixFreeLayout) -> Vec<GpuBuffer> {
+    vec![
         storage(ctx, "contacts", &op.contacts),
         storage(ctx, "start", &op.body_start),
         storage(ctx, "list", &op.body_list),
         storage(ctx, "inv_mass", &op.inv_mass),
-        storage(ctx, "r", r),
-        storage(ctx, "v", &vec![[0.0f32; 4]; op.inv_mass.len()]),
-    ];
-    let group =
-        bind(ctx, &k.body_accumulate, &named(&bufs, &["contacts", "body_start", "body_list", "inv_mass", "r", "v"]));
+    ]
+}
+
+/// Runs `body_accumulate` alone (compared with its mirror in the tests).
+pub fn body_accumulate(ctx: &GpuContext, op: &MatrixFreeLayout, r: &[[f32; 2]]) -> Result<Vec<[f32; 4]>, GpuError> {
+    let k = ctx.kernels(op.rotation, op.friction);
+    let mut bufs = body_pass_buffers(ctx, op);
+    bufs.extend([storage(ctx, "r", r), storage(ctx, "v", &vec![[0.0f32; 4]; op.inv_mass.len()])]);
+    let group = bind(ctx, &k.body_accumulate, &named(&bufs, &[&BODY_PASS[..], &["r", "v"]].concat()));
     run(ctx, &k.body_accumulate, &group, op.inv_mass.len());
     read_back(ctx, &bufs[5], op.inv_mass.len()).map_err(GpuError::Runtime)
 }
@@ -83,6 +89,33 @@ pub fn jacobi_update(
     let group = bind(ctx, &k.jacobi_update, &named(&bufs, &["u", "mu", "step", "r"]));
     run(ctx, &k.jacobi_update, &group, mu.len());
     read_back(ctx, &bufs[3], mu.len()).map_err(GpuError::Runtime)
+}
+
+/// Runs `jacobi_fused` once from `(r, v)`: the new `r` and `v`.
+pub fn jacobi_fused(
+    ctx: &GpuContext,
+    op: &MatrixFreeLayout,
+    (q, mu, step): (&[[f32; 2]], &[f32], &[f32]),
+    (r, v): (&[[f32; 2]], &[[f32; 4]]),
+) -> Result<ImpulsesAndVelocities, GpuError> {
+    let k = ctx.kernels(op.rotation, op.friction);
+    let mut bufs = body_pass_buffers(ctx, op);
+    bufs.extend([
+        storage(ctx, "q", q),
+        storage(ctx, "mu", mu),
+        storage(ctx, "step", step),
+        storage(ctx, "r_in", r),
+        storage(ctx, "v_in", v),
+        storage(ctx, "r_out", &vec![[0.0f32; 2]; r.len()]),
+        storage(ctx, "v_out", &vec![[0.0f32; 4]; v.len()]),
+    ]);
+    let names = [&BODY_PASS[..], &["q", "mu", "step", "r_in", "v_in", "r_out", "v_out"]].concat();
+    let group = bind(ctx, &k.jacobi_fused, &named(&bufs, &names));
+    run(ctx, &k.jacobi_fused, &group, op.inv_mass.len());
+    Ok((
+        read_back(ctx, &bufs[9], r.len()).map_err(GpuError::Runtime)?,
+        read_back(ctx, &bufs[10], v.len()).map_err(GpuError::Runtime)?,
+    ))
 }
 
 /// Runs a matrix-free NLGS kernel once over `(r, v)` on `workgroups` workgroups: the operator's

@@ -5,6 +5,7 @@
 use std::time::Instant;
 
 use super::context::{GpuContext, GpuError};
+use super::jacobi::{steps, FusedJacobi};
 use super::kernels::{bind, dispatch, groups, storage, submit};
 use super::nlgs::ColouredSweep;
 use super::operator::GpuProblem;
@@ -29,23 +30,36 @@ fn run(ctx: &GpuContext, n: usize, mut record: impl FnMut(&mut wgpu::ComputePass
     Ok(start.elapsed().as_secs_f64() / n as f64)
 }
 
-/// Times `n` products and `n` Jacobi iterations of `p` on the GPU.
+/// Times `n` products and `n` Jacobi iterations of `p` on the GPU, as the GPU's Jacobi solve
+/// records them (one `jacobi_fused` dispatch on the matrix-free operator).
 pub fn kernel_times(ctx: &GpuContext, p: &ContactProblem, n: usize) -> Result<KernelTimes, GpuError> {
     let nc = p.n_contacts();
     let gp = GpuProblem::upload(ctx, p);
     let kernels = &gp.kernels;
     let r = storage(ctx, "r", &vec![[0.0f32; 2]; nc]);
     let u = storage(ctx, "u", &vec![[0.0f32; 2]; nc]);
-    let step =
-        storage(ctx, "step", &p.w.diag_blocks().iter().map(|d| (1.0 / (d[0] + d[3])) as f32).collect::<Vec<_>>());
+    let step = storage(ctx, "step", &steps(p, 0.5));
     let op = gp.product(ctx, &r, &gp.q, &u);
-    let update = bind(ctx, &kernels.jacobi_update, &[("u", &u), ("mu", &gp.mu), ("step", &step), ("r", &r)]);
     run(ctx, 3, |pass| op.record(kernels, pass))?; // warm-up: pipeline creation, first-use costs
     let product = run(ctx, n, |pass| op.record(kernels, pass))?;
-    let jacobi_iteration = run(ctx, n, |pass| {
-        op.record(kernels, pass);
-        dispatch(pass, &kernels.jacobi_update, &update, groups(nc));
-    })?;
+    let jacobi_iteration = match FusedJacobi::new(ctx, &gp, &step, &r) {
+        Some(fused) => {
+            let mut leg = 0;
+            let mut iteration = |pass: &mut wgpu::ComputePass| {
+                fused.record(pass, leg);
+                leg = 1 - leg;
+            };
+            run(ctx, 2, &mut iteration)?;
+            run(ctx, n, iteration)?
+        }
+        None => {
+            let update = bind(ctx, &kernels.jacobi_update, &[("u", &u), ("mu", &gp.mu), ("step", &step), ("r", &r)]);
+            run(ctx, n, |pass| {
+                op.record(kernels, pass);
+                dispatch(pass, &kernels.jacobi_update, &update, groups(nc));
+            })?
+        }
+    };
     Ok(KernelTimes { product, jacobi_iteration })
 }
 

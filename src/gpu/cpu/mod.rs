@@ -16,6 +16,7 @@ pub mod cpg_gradient;
 pub mod cpg_restart;
 pub mod cpg_scalars;
 pub mod cpg_update;
+pub mod jacobi_fused;
 pub mod jacobi_update;
 pub mod natural_map;
 pub mod nlgs_blocks;
