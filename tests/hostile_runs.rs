@@ -327,3 +327,22 @@ fn a_run_warns_when_a_fast_grain_loosens_the_velocity_tests_bound() {
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["criterion"], "velocity");
 }
+
+/// Extreme punches: one so soft that its stresses underflow f32 (Young's modulus 1e-300 Pa,
+/// stresses about 1e-303) still draws its stress picture (the colour scale once divided 0 by 0
+/// in f32, and plotters' colour map panicked on the NaN); a modulus whose stiffness overflows
+/// f64, and a punch pushed further than its block is high (whose load overflowed and panicked
+/// in the condensation), are refused naming the value.
+#[test]
+fn extreme_punches_run_or_are_refused_naming_the_value() {
+    let scene =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/signorini_punch.toml")).unwrap();
+    assert!(scene.contains("young = 1.0e7") && scene.contains("displacement = 0.01"), "the shipped punch moved");
+    let (o, dir) = run_scene("soft_punch", &scene.replace("young = 1.0e7", "young = 1e-300"), &[]);
+    assert!(o.status.success() && !stderr(&o).contains("panicked"), "{}", stderr(&o));
+    assert!(dir.join("out").join("sigma_yy.png").is_file());
+    let (o, _) = run_scene("stiff_punch", &scene.replace("young = 1.0e7", "young = 1e308"), &[]);
+    refused(&o, &["young = 1e308", "overflow"]);
+    let (o, _) = run_scene("deep_punch", &scene.replace("displacement = 0.01", "displacement = -1e308"), &[]);
+    refused(&o, &["displacement = -1e308", "height"]);
+}

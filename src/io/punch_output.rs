@@ -91,7 +91,12 @@ pub fn write_stress_png(model: &PunchModel, sol: &PunchSolution, path: &Path, wi
     let syy: Vec<f64> = sol.stress.iter().map(|s| s[1]).collect();
     let (lo, hi) = syy.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
     let hi = if hi > lo { hi } else { lo + 1.0 };
-    let colour = |v: f64| ViridisRGB.get_color_normalized(v as f32, lo as f32, hi as f32);
+    // Normalised in f64: stresses of a very soft or very stiff body leave f32 no range (and
+    // plotters' own normalisation a 0/0), and a non-finite one is drawn at the bottom.
+    let colour = |v: f64| {
+        let t = (v - lo) / (hi - lo);
+        ViridisRGB.get_color(if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) as f32 })
+    };
     let err = |e: DrawingAreaErrorKind<_>| anyhow!("drawing {}: {e:?}", path.display());
     let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
     root.fill(&WHITE).map_err(err)?;

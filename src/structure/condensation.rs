@@ -59,6 +59,13 @@ impl PunchModel {
         if !displacement.is_finite() {
             return Err(StructureError::Invalid(format!("displacement = {displacement} is not finite")));
         }
+        if displacement.abs() > geometry.height {
+            return Err(StructureError::Invalid(format!(
+                "displacement = {displacement:e} m is larger than the block's height ({} m): small-strain \
+                 elasticity cannot describe it",
+                geometry.height
+            )));
+        }
         let mesh = Mesh::punch(&geometry);
         let n_nodes = mesh.nodes.len();
         let mut dofs = vec![Dof::Interior(0); 2 * n_nodes];

@@ -91,6 +91,9 @@ pub fn assemble(mesh: &Mesh, material: &Elastic) -> Result<Vec<(usize, usize, f6
     for q in &mesh.quads {
         let xy = q.map(|n| mesh.nodes[n]);
         let k = quad_stiffness(&xy, &d)?;
+        if k.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(format!("young = {:e} makes the stiffness overflow f64", material.young));
+        }
         let dofs: Vec<usize> = q.iter().flat_map(|&n| [2 * n, 2 * n + 1]).collect();
         for r in 0..8 {
             for c in 0..8 {
