@@ -787,3 +787,16 @@ def test_the_biaxial_example_holds_its_confining_stress_and_drives_its_plate_whi
     peak = max(r["sin_phi"] for r in shear)
     assert 0.2 < peak < 0.7, [r["sin_phi"] for r in shear]
     assert max(r["max_overlap"] for r in shear) < 5e-3, [r["max_overlap"] for r in shear]
+
+
+def test_a_grain_flung_by_a_finite_but_huge_force_stops_the_step_with_an_error():
+    # A force of 1e308 N sends the grain some 1e300 m in a step: the next detection once made a
+    # cell count overflow (a panic); the step now reports the grain that ran away.
+    world = moreau.World([("glass", 2500.0)], friction=0.3, gravity=(0.0, -9.81))
+    world.add_wall((-1.0, 0.0), (1.0, 0.0), "glass")
+    for k in range(5):
+        world.add_disk((-0.4 + 0.2 * k, 0.05), 0.05, "glass")
+    sim = moreau.Simulation(world, h=1e-3)
+    sim.apply_force(1, (0.0, 1e308))
+    with pytest.raises(moreau.MoreauError, match="ran away"):
+        sim.step()

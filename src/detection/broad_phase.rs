@@ -34,6 +34,9 @@ impl Grid {
         if needed > max_cells {
             cell *= (needed / max_cells).sqrt();
         }
+        // Bodies strung out along one axis (a grain flung far away along x): no more cells along
+        // an axis than that either, nor counts that overflow a usize.
+        cell = cell.max(span.x / max_cells).max(span.y / max_cells);
         let nx = (span.x / cell) as usize + 1;
         let ny = (span.y / cell) as usize + 1;
         let coords =
@@ -138,5 +141,38 @@ mod tests {
         let one = pairs_on(1);
         assert!(one.len() > n / 2);
         assert_eq!(one, pairs_on(2));
+    }
+
+    /// A grain flung far along one axis, or bodies spread over f64's range, or an alert distance
+    /// larger than the scene: the grid stays O(N) cells and finds the brute-force pairs (a grain
+    /// at 1e300 m once made a cell count overflow and the grid index out of bounds).
+    #[test]
+    fn bodies_far_apart_or_a_huge_alert_give_the_brute_force_pairs() {
+        let p = DVec2::new;
+        let cases = [
+            (vec![p(0.0, 0.0), p(1e300, 0.0), p(0.08, 0.0)], 0.1),
+            (vec![p(0.0, 0.0), p(0.0, 5e300), p(0.0, 0.09), p(1.0, 0.0)], 1e-3),
+            (vec![p(-1e308, 0.0), p(1e308, 1e308), p(0.0, 0.0), p(0.05, 0.05)], 0.1),
+            (vec![p(0.0, 0.0), p(1e300, 1e300), p(0.5, 0.5), p(0.55, 0.5)], 0.1),
+            (vec![p(0.0, 0.0), p(1.0, 0.0), p(3.0, 4.0)], 1e308),
+        ];
+        for (pos, alert) in cases {
+            let rad = vec![0.05; pos.len()];
+            let mut pairs = Vec::new();
+            let mut grid = Grid::default();
+            grid.candidate_pairs(&pos, &rad, alert, &mut pairs);
+            let mut brute = Vec::new();
+            for i in 0..pos.len() {
+                for j in i + 1..pos.len() {
+                    let reach = rad[i] + rad[j] + alert;
+                    if pos[i].distance_squared(pos[j]) <= reach * reach {
+                        brute.push((i as u32, j as u32));
+                    }
+                }
+            }
+            assert!(!brute.is_empty(), "{pos:?}");
+            assert_eq!(pairs, brute, "{pos:?}, alert {alert:e}");
+            assert!(grid.cell_start.len() <= 4 * (4 * pos.len() + 64) + 2, "{} cells", grid.cell_start.len());
+        }
     }
 }
