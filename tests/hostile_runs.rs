@@ -231,6 +231,12 @@ fn nothing_is_silently_accepted() {
     refused(&o, &["polygon", "cross or touch", "vertex 0", "vertex 2"]);
     let (o, _) = run_scene("spike", &polygon("[[0.0, 0.0], [1.0, 0.0], [0.5, 0.0], [0.5, 0.5]]"), &[]);
     refused(&o, &["folds back", "vertex 1"]);
+    // A vertex beyond what the f32 hull can take (parry2d panicked on it), on a body and a wall.
+    let (o, _) = run_scene("far_vertex", &polygon("[[0.0, 0.0], [1.0, 0.0], [0.0, 1e308]]"), &[]);
+    refused(&o, &["vertex 2", "beyond 1e18 m"]);
+    let wall = format!("{SMALL}[[wall]]\npolygon = [[2.0, 1e308], [0.7, 0.5], [2.0, -1.0]]\n");
+    let (o, _) = run_scene("far_wall_vertex", &wall, &[]);
+    refused(&o, &["wall[", "vertex 0", "beyond 1e18 m"]);
     let (o, _) = run_scene("clockwise", &polygon("[[0.0, 0.0], [0.0, 0.1], [0.1, 0.1], [0.1, 0.0]]"), &[]);
     assert!(o.status.success(), "a clockwise convex polygon is accepted: {}", stderr(&o));
     let (o, _) = run_scene("gravity3", &format!("effects = [\"gravity\"]\ngravity = [0.0, -9.81, 0.0]\n{SMALL}"), &[]);

@@ -550,11 +550,23 @@ pub(crate) fn check_vertices(vertices: &[DVec2]) -> Result<(), String> {
     if vertices.len() < 3 {
         return Err(format!("a polygon needs at least 3 vertices, got {}", vertices.len()));
     }
-    match vertices.iter().position(|v| !v.is_finite()) {
-        Some(k) => Err(format!("polygon vertex {k} [{}, {}] is not finite", vertices[k].x, vertices[k].y)),
+    if let Some(k) = vertices.iter().position(|v| !v.is_finite()) {
+        return Err(format!("polygon vertex {k} [{}, {}] is not finite", vertices[k].x, vertices[k].y));
+    }
+    // The convex hull is computed in f32 (parry2d), whose products of coordinates overflow past
+    // about 1e19 (and whose hull panicked on the infinities of a vertex at 1e308).
+    match vertices.iter().position(|v| v.abs().max_element() > MAX_VERTEX_COORDINATE) {
+        Some(k) => Err(format!(
+            "polygon vertex {k} [{:e}, {:e}] lies beyond {MAX_VERTEX_COORDINATE:e} m, farther than the polygon's \
+             hull (computed in f32) can handle",
+            vertices[k].x, vertices[k].y
+        )),
         None => Ok(()),
     }
 }
+
+/// The largest coordinate of a polygon's vertex, in metres.
+const MAX_VERTEX_COORDINATE: f64 = 1e18;
 
 /// Whether the vertices go once around a convex polygon, in either orientation: a concave or
 /// self-intersecting outline must not be silently replaced by its hull.
