@@ -219,7 +219,8 @@ impl Simulation {
 
     /// The moving grains by height, in layers `thickness` high from the floor of the region they
     /// occupy up to the top grain (module docs); empty without moving grains or for a thickness
-    /// that is not a positive number.
+    /// that is not a positive number. At most a million layers: past them the last one is
+    /// thicker, up to the top grain (its bounds say so).
     pub fn height_profile(&self, thickness: f64) -> Vec<ProfileLayer> {
         let b = &self.world.bodies;
         let grains: Vec<usize> = (0..b.len()).filter(|&k| b.inv_mass[k] > 0.0).collect();
@@ -228,7 +229,8 @@ impl Simulation {
         }
         let (x0, x1, floor, top) = self.occupied_region(&grains);
         // Rounding must not open a layer above the top grain's.
-        let count = ((top - floor) / thickness * (1.0 - 1e-12)).ceil().clamp(1.0, 1e6) as usize;
+        let needed = ((top - floor) / thickness * (1.0 - 1e-12)).ceil();
+        let (count, capped) = (needed.clamp(1.0, MAX_PROFILE_LAYERS) as usize, needed > MAX_PROFILE_LAYERS);
         let layer_of = |y: f64| (((y - floor) / thickness).floor().max(0.0) as usize).min(count - 1);
         let mut layers: Vec<ProfileLayer> = (0..count)
             .map(|n| ProfileLayer {
@@ -237,6 +239,10 @@ impl Simulation {
                 ..ProfileLayer::default()
             })
             .collect();
+        // Past the most layers, the last one reaches up to the top grain and says so.
+        if capped {
+            layers[count - 1].y_high = top;
+        }
         // Sums of m, m v, m ω and the solid area, then the means.
         let layer: Vec<usize> = grains.iter().map(|&k| layer_of(b.position[k].y)).collect();
         let mut mass = vec![0.0; count];
@@ -250,7 +256,12 @@ impl Simulation {
             l.spin += m * b.spin_of(k);
             match b.shape[k] {
                 crate::world::BodyShape::Disk { radius } => {
-                    for l in layers.iter_mut().filter(|l| l.y_high > y - radius && l.y_low < y + radius) {
+                    // The layers the disk spans (one more either side against rounding), not every
+                    // layer: a thin thickness under a deep pile made this loop the grains × a
+                    // million layers.
+                    let (low, high) =
+                        (layer_of(y - radius).saturating_sub(1), (layer_of(y + radius) + 1).min(count - 1));
+                    for l in layers[low..=high].iter_mut().filter(|l| l.y_high > y - radius && l.y_low < y + radius) {
                         l.solid_fraction += disk_area_between(y, radius, l.y_low, l.y_high);
                     }
                 }
@@ -259,8 +270,9 @@ impl Simulation {
                 }
             }
         }
-        for (l, &m) in layers.iter_mut().zip(&mass) {
-            l.solid_fraction /= (x1 - x0) * thickness;
+        for (n, (l, &m)) in layers.iter_mut().zip(&mass).enumerate() {
+            let height = if capped && n == count - 1 { l.y_high - l.y_low } else { thickness };
+            l.solid_fraction /= (x1 - x0) * height;
             if m > 0.0 {
                 (l.vx, l.vy, l.spin) = (l.vx / m, l.vy / m, l.spin / m);
             }
@@ -275,6 +287,9 @@ impl Simulation {
         layers
     }
 }
+
+/// The most layers a height profile has: past them its last layer reaches up to the top grain.
+const MAX_PROFILE_LAYERS: f64 = 1e6;
 
 /// One layer of [`Simulation::height_profile`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
@@ -482,5 +497,17 @@ mod tests {
             assert_eq!(l.grains, if n % 2 == 1 { 10 } else { 0 }, "layer {n}");
         }
         assert!(sim.height_profile(0.0).is_empty() && sim.height_profile(f64::NAN).is_empty());
+        // A thickness that would need more than a million layers: a million, the last reaching
+        // up to the top grain and holding every grain above its floor.
+        let thin = sim.height_profile(1e-9);
+        assert_eq!(thin.len(), 1_000_000);
+        let last = thin.last().unwrap();
+        assert!((last.y_high - 0.3).abs() < 1e-12 && last.y_low < 1e-3, "{last:?}");
+        assert_eq!(thin.iter().map(|l| l.grains).sum::<usize>(), 30);
+        assert_eq!(last.grains, 30);
+        // Each layer's solid fraction times its height sums to the disks' area over the width (1 m).
+        let area: f64 = thin.iter().map(|l| l.solid_fraction * (l.y_high - l.y_low)).sum();
+        let disks = 30.0 * std::f64::consts::PI * 0.05 * 0.05;
+        assert!((area - disks).abs() < 1e-9, "{area} against {disks}");
     }
 }
