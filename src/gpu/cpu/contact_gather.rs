@@ -4,14 +4,20 @@ use crate::gpu::layout::{MatrixFreeLayout, NO_ANTAGONIST};
 
 /// The CPU mirror of `contact_gather`: the same bindings and order of operations in f32.
 pub fn contact_gather(op: &MatrixFreeLayout, v: &[[f32; 4]], q: &[[f32; 2]], u: &mut [[f32; 2]]) {
-    for a in 0..op.contacts.len() {
-        let [un, ut] = gather_one(op, v, a);
-        u[a] = [un + q[a][0], ut + q[a][1]];
+    for (a, ua) in u.iter_mut().enumerate().take(op.contacts.len()) {
+        *ua = contact_velocity(op, v, q, a);
     }
 }
 
-/// `B_a v` for one contact, as the kernels compute it (shared with the NLGS mirror).
-pub(crate) fn gather_one(op: &MatrixFreeLayout, v: &[[f32; 4]], a: usize) -> [f32; 2] {
+/// `u_a = B_a v + q_a` for one contact, as the kernels compute it (shared with the mirrors of
+/// the NLGS colour and the fused Jacobi iteration).
+pub(crate) fn contact_velocity(op: &MatrixFreeLayout, v: &[[f32; 4]], q: &[[f32; 2]], a: usize) -> [f32; 2] {
+    let [un, ut] = gather_one(op, v, a);
+    [un + q[a][0], ut + q[a][1]]
+}
+
+/// `B_a v` for one contact, as the kernels compute it.
+fn gather_one(op: &MatrixFreeLayout, v: &[[f32; 4]], a: usize) -> [f32; 2] {
     {
         let c = &op.contacts[a];
         let vi = v[c.i as usize];

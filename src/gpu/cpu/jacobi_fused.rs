@@ -2,7 +2,7 @@
 //! `(r_in, v_in)` to `(r_out, v_out)`.
 
 use super::body_accumulate::{add, body_contacts, body_velocity, contact_push};
-use super::contact_gather::gather_one;
+use super::contact_gather::contact_velocity;
 use super::jacobi_update::jacobi_one;
 use crate::gpu::layout::MatrixFreeLayout;
 
@@ -20,8 +20,7 @@ pub fn jacobi_fused(
     for (k, out) in v_out.iter_mut().enumerate().take(op.inv_mass.len()) {
         let mut push = [0.0f32; 3];
         for (a, is_j) in body_contacts(op, k) {
-            let [un, ut] = gather_one(op, v_in, a);
-            let rn = jacobi_one(r_in[a], [un + q[a][0], ut + q[a][1]], mu[a], step[a]);
+            let rn = jacobi_one(r_in[a], contact_velocity(op, v_in, q, a), mu[a], step[a]);
             if !is_j {
                 r_out[a] = rn;
             }

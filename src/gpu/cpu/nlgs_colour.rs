@@ -3,7 +3,7 @@
 //! With a `threshold` > 0 (the work list's sweeps) a contact whose residual in velocity units is
 //! within it is left alone, and the contacts updated are counted.
 
-use super::contact_gather::gather_one;
+use super::contact_gather::contact_velocity;
 use super::single_contact::{solve_single_contact, velocity_residual};
 use crate::gpu::layout::{MatrixFreeLayout, NO_ANTAGONIST};
 
@@ -25,10 +25,9 @@ pub fn nlgs_colour(
         let a = a as usize;
         let c = &op.contacts[a];
         let t = [-c.n[1], c.n[0]];
-        let [un, ut] = gather_one(op, v, a);
         let w = diag[a];
         let ra = r[a];
-        let u = [un + q[a][0], ut + q[a][1]];
+        let u = contact_velocity(op, v, q, a);
         if threshold > 0.0 && velocity_residual(w[0], ra, u, mu[a]) <= threshold {
             continue;
         }
